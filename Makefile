@@ -1,0 +1,27 @@
+# `make run`: set up and replay the paper's 700 s reclaim in the browser.
+# `make test`: set up and run the whole test suite.
+VENV ?= .venv
+PYTHON ?= python3
+PY := $(VENV)/bin/python
+
+.PHONY: setup run test bench figures clean
+
+$(VENV)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $@
+
+setup: $(VENV)/.installed
+
+run: setup
+	$(PY) -m bwr_twin.replay
+
+test: setup
+	$(PY) -m pytest
+
+bench: setup
+	$(PY) tools/bench.py
+
+clean:
+	rm -rf out .pytest_cache
