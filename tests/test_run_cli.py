@@ -1,0 +1,121 @@
+"""`python -m bwr_twin.run`: results that follow the output contract, identical for the same
+seed, and bad input that exits non-zero with one line and leaves nothing behind."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bwr_twin.machine import AXES
+from bwr_twin.results import read_timeseries
+from conftest import ROOT, SCENES
+
+CONTRACT_KEYS = {"position_error_max", "position_error_max_time", "velocity_error_max", "acceleration_error_max", "position_error_rms"}
+SHORT_PATH = """[path]
+frame = "paper"
+via_points = [
+  { t = 0.0, p = [0.0, -11.0, 55.0] },
+  { t = 20.0, p = [-3.0, -11.0, 54.0] },
+]
+"""
+
+
+def short_scene(tmp_path, extra_edit=None):
+    """The individual-gains scene over a 20 s path, written next to the tests' tmp files."""
+    text = (SCENES / "paper_individual_gains.toml").read_text()
+    start, end = text.index("[path]"), text.index("[simulation]")
+    text = text[:start] + SHORT_PATH + "\n" + text[end:]
+    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
+    if extra_edit:
+        text = extra_edit(text)
+    path = tmp_path / "short.toml"
+    path.write_text(text)
+    return path
+
+
+def run_cli(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "bwr_twin.run", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+def test_run_writes_contract_results(tmp_path):
+    out = tmp_path / "run"
+    proc = run_cli(short_scene(tmp_path), "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "position error max" in proc.stdout and "travel" in proc.stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    for axis in AXES:
+        assert CONTRACT_KEYS <= set(metrics[axis])
+        assert 0 <= metrics[axis]["position_error_max_time"] <= 20
+    series = read_timeseries(out / "timeseries.csv")
+    assert series["time_s"][0] == 0 and series["time_s"][-1] == pytest.approx(20)
+    assert {"travel_q_desired_m", "slew_q_actual_rad", "luff_drive_force_Nm", "cp_actual_x_m"} <= set(series)
+    # The recorded errors agree with the metrics (record period 0.1 s, metrics at 0.01 s).
+    error = series["travel_q_desired_m"] - series["travel_q_actual_m"]
+    assert np.max(np.abs(error)) <= abs(metrics["travel"]["position_error_max"]) + 1e-12
+    for png in ("positions.png", "velocities.png", "accelerations.png", "fuzzy_outputs.png",
+                "errors_position.png", "errors_velocity.png", "errors_acceleration.png", "drive_forces.png", "cp_path.png"):
+        assert (out / png).stat().st_size > 10_000, png
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging debris
+
+
+def test_same_scene_and_seed_give_identical_results(tmp_path):
+    scene = short_scene(tmp_path)
+    for name in ("a", "b"):
+        assert run_cli(scene, "--out", tmp_path / name, "--seed", 5, "--no-plots").returncode == 0
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
+    assert run_cli(scene, "--out", tmp_path / "c", "--seed", 6, "--no-plots").returncode == 0
+    assert (tmp_path / "a" / "timeseries.csv").read_bytes() != (tmp_path / "c" / "timeseries.csv").read_bytes()
+
+
+def test_model_option_swaps_the_machine(tmp_path):
+    proc = run_cli(short_scene(tmp_path), "--out", tmp_path / "variant", "--model", ROOT / "tests/assets/bwr_variant.xml", "--no-plots")
+    # The paper's path starts 55 m out along the rail; the variant reaches it, inside its envelope or not.
+    assert proc.returncode in (0, 2), proc.stderr
+    if proc.returncode == 2:
+        assert "bwr_variant.xml" in proc.stderr and "Traceback" not in proc.stderr
+    else:
+        assert "bwr_variant.xml" in json.loads((tmp_path / "variant" / "metrics.json").read_text())["run"]["mjcf"]
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda t: t.replace("p = [-3.0, -11.0, 54.0]", "p = [-3.0, -80.0, 54.0]"), r"via point 2 \(t = 20 s\) at world .* beyond the boom's reach"),
+        (lambda t: t.replace("p = [-3.0, -11.0, 54.0]", "p = [-3.0, -11.0, 90.0]"), r"via point 2 .*travel = 3\d\.\d+ m is outside the operating envelope \[-25.000 m, 25.000 m\]"),
+        (lambda t: t.replace("t = 20.0", "t = 0.0"), r"via point 2 \(t = 0.0 s\) must come after via point 1"),
+        (lambda t: t.replace("seed = 1", "seed = 1\ncolour = 2"), r"unknown key 'simulation.colour'"),
+        (lambda t: t.replace("seed = 1", "seed = 1.5"), r"'simulation.seed' must be an integer, got 1.5"),
+        (lambda t: t.replace("[simulation]", "[simulation"), r"malformed TOML"),
+        (lambda t: t.replace("/mjcf/bwr.xml", "/mjcf/missing.xml"), r"'machine.mjcf' names a file that does not exist"),
+        (lambda t: t.replace("output_gain = [0.01, 0.04, 0.06]", "output_gain = [1e12, 1e12, 1e12]"), r"the simulation diverged \(MuJoCo: .*unstable. Time = 0.0100.\)"),
+    ],
+    ids=["unreachable", "envelope", "times", "unknown-key", "type", "toml", "mjcf", "divergence"],
+)
+def test_bad_input_exits_with_one_line_and_writes_nothing(tmp_path, edit, message):
+    import re
+
+    out = tmp_path / "out"
+    proc = run_cli(short_scene(tmp_path, edit), "--out", out)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("error: ") and "short.toml" in lines[0], lines[0]
+    assert re.search(message, lines[0]), lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]
+
+
+def test_existing_output_is_left_untouched(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("earlier results")
+    proc = run_cli(short_scene(tmp_path), "--out", out)
+    assert proc.returncode == 2 and "already exists" in proc.stderr
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+
+
+def test_missing_scene_file_exits_2(tmp_path):
+    proc = run_cli(tmp_path / "nope.toml", "--out", tmp_path / "out")
+    assert proc.returncode == 2 and "nope.toml: scene file not found" in proc.stderr

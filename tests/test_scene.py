@@ -1,0 +1,79 @@
+"""Scene files load into typed configuration, and every broken rule is named in one line."""
+
+import numpy as np
+import pytest
+
+from bwr_twin import SceneError
+from bwr_twin.scene import load_scene
+from conftest import PAPER_MJCF, PAPER_VIA_POINTS, SCENES
+
+INDIVIDUAL = SCENES / "paper_individual_gains.toml"
+
+
+def edited(tmp_path, old, new, source=INDIVIDUAL):
+    text = source.read_text()
+    assert old in text, old
+    path = tmp_path / "edited.toml"
+    path.write_text(text.replace(old, new, 1).replace('"../mjcf/', f'"{PAPER_MJCF.parent}/').replace(
+        '"rulebases/', f'"{SCENES}/rulebases/'))
+    return path
+
+
+@pytest.mark.parametrize("name, gains", [("paper_shared_gain", (0.001,) * 3), ("paper_individual_gains", (0.01, 0.04, 0.06))])
+def test_paper_scenes_hold_the_paper_settings(name, gains):
+    scene = load_scene(SCENES / f"{name}.toml")
+    assert scene.controller.output_gain == gains
+    assert scene.controller.input_scale_e == scene.controller.input_scale_ec == 50
+    assert scene.encoders.resolution == (0.00153, 0.00153, 0.00076)
+    assert scene.disturbance.amplitude == (100, 100, 100)
+    assert scene.machine.mjcf == PAPER_MJCF
+    assert scene.controller_mjcf == PAPER_MJCF
+    assert scene.trajectory.frame == "paper"
+    assert [(v.t, v.p) for v in scene.trajectory.via_points] == PAPER_VIA_POINTS
+    assert not scene.controller.acceleration_feedforward
+
+
+def test_overrides_are_validated_like_the_file():
+    scene = load_scene(INDIVIDUAL, {"simulation.seed": 7, "controller.output_gain": [0.02, 0.04, 0.06]})
+    assert scene.simulation.seed == 7 and scene.controller.output_gain == (0.02, 0.04, 0.06)
+    with pytest.raises(SceneError, match=r"'controller.output_gain' must hold 3 values"):
+        load_scene(INDIVIDUAL, {"controller.output_gain": [0.02]})
+
+
+@pytest.mark.parametrize(
+    "old, new, message",
+    [
+        ("seed = 1", "seed = 1\nsed = 2", r"edited.toml: unknown key 'simulation.sed' \(valid here: .*seed"),
+        ("seed = 1", 'seed = "one"', r"edited.toml: 'simulation.seed' must be an integer, got 'one'"),
+        ("output_gain = [0.01, 0.04, 0.06]", "output_gain = [0.01, -0.04, 0.06]", r"'controller.output_gain \(slew\)' must be > 0"),
+        ("output_gain = [0.01, 0.04, 0.06]", "output_gain = [0.01, 0.04]", r"'controller.output_gain' must hold 3 values"),
+        ('frame = "paper"', 'frame = "local"', r"'path.frame' must be one of \['paper', 'world'\]"),
+        ("t = 300.0", "t = 150.0", r"via point 3 \(t = 150.0 s\) must come after via point 2 \(t = 200.0 s\)"),
+        ("timestep = 0.002", "timestep = 0.003", r"'simulation.control_period' \(0.01 s\) must be a whole multiple"),
+        ('mjcf = "../mjcf/bwr.xml"', 'mjcf = "../mjcf/nowhere.xml"', r"'machine.mjcf' names a file that does not exist: .*nowhere.xml"),
+        ("[encoders]\n", "", r"edited.toml: unknown key 'simulation.resolution'"),
+        ("velocity_source = \"true\"", "velocity_source = true", r"'controller.velocity_source' must be one of"),
+    ],
+)
+def test_bad_scene_names_file_key_and_rule(tmp_path, old, new, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(edited(tmp_path, old, new))
+
+
+def test_malformed_toml_names_the_file_and_line(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[simulation\nseed = 1\n")
+    with pytest.raises(SceneError, match=r"broken.toml: malformed TOML: .*line 1"):
+        load_scene(path)
+
+
+def test_missing_scene_file(tmp_path):
+    with pytest.raises(SceneError, match="nope.toml: scene file not found"):
+        load_scene(tmp_path / "nope.toml")
+
+
+def test_scene_round_trips_to_plain_data():
+    scene = load_scene(INDIVIDUAL)
+    plain = scene.to_dict()
+    assert plain["machine"]["mjcf"] == str(PAPER_MJCF)
+    assert np.allclose(plain["trajectory"]["via_points"][2]["p"], [-55, -11, 2])
