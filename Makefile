@@ -10,6 +10,8 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
+	@echo "computing the fuzzy control surface with scikit-fuzzy (once, then cached) ..."
+	$(PY) -c "from bwr_twin.fuzzy import FuzzySurface, RuleBase; FuzzySurface.load(RuleBase.paper())"
 	touch $@
 
 setup: $(VENV)/.installed

@@ -1,0 +1,64 @@
+"""Reproduce the paper's results: run both paper scenes, copy their figures into docs/figures/
+and print the comparison table of docs/reproduction.md.
+
+    python tools/reproduce.py [--out out/reproduction] [--seeds 1 2 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bwr_twin.machine import AXES, UNITS, to_display  # noqa: E402
+from bwr_twin.results import compute_metrics, write_run  # noqa: E402
+from bwr_twin.scene import load_scene  # noqa: E402
+from bwr_twin.simulate import simulate  # noqa: E402
+
+SCENES = ("paper_shared_gain", "paper_individual_gains")
+FIGURES = ("positions.png", "errors_position.png", "errors_velocity.png", "errors_acceleration.png", "fuzzy_outputs.png", "cp_path.png")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=ROOT / "out" / "reproduction")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    args = parser.parse_args()
+
+    for name in SCENES:
+        print(f"\n### {name} (seeds {', '.join(map(str, args.seeds))})\n")
+        print("| axis | position error max | at t | velocity error max | acceleration error max | position error RMS |")
+        print("| --- | --- | --- | --- | --- | --- |")
+        runs = []
+        for seed in args.seeds:
+            result = simulate(load_scene(ROOT / "scenes" / f"{name}.toml", {"simulation.seed": seed}))
+            if seed == args.seeds[0]:
+                run_dir = args.out / name
+                write_run(result, run_dir, overwrite=True)
+                figures = ROOT / "docs" / "figures" / name
+                figures.mkdir(parents=True, exist_ok=True)
+                for figure in FIGURES:
+                    shutil.copy(run_dir / figure, figures / figure)
+            runs.append(compute_metrics(result))
+        for j, axis in enumerate(AXES):
+            unit = UNITS[j]
+
+            def span(key, per="", sign="+"):
+                values = [to_display(j, m[axis][key]) for m in runs]
+                return f"{min(values):{sign}.3g} to {max(values):{sign}.3g} {unit}{per}"
+
+            times = [m[axis]["position_error_max_time"] for m in runs]
+            print(f"| {axis} | {span('position_error_max')} | {min(times):.0f}–{max(times):.0f} s | "
+                  f"{span('velocity_error_max', '/s')} | {span('acceleration_error_max', '/s²')} | "
+                  f"{span('position_error_rms', sign='')} |")
+    print(f"\nfigures of seed {args.seeds[0]} in docs/figures/, full runs in {args.out}/")
+
+
+if __name__ == "__main__":
+    main()
