@@ -11,8 +11,10 @@ that geometry: a slew axis at (sx, sy), a luff pivot `pivot_reach` out from it a
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -26,6 +28,15 @@ ENVELOPE_KEY = "envelope_{axis}"
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
+_POINT_INERTIA = 1e-6  # kg m^2: a point mass, as MuJoCo needs a positive inertia
+
+
+class Payload(Protocol):
+    """A point mass (kg) at `pos` (m) in the frame of the body named `body`."""
+
+    body: str
+    mass: float
+    pos: tuple[float, float, float]
 
 
 def to_display(axis_index: int, value: float) -> float:
@@ -73,12 +84,26 @@ class Machine:
         drive_limits: (3, 2) generalised force limits of the drives in N and N m (inf if none).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = ()):
+        """Compile `path`, adding each payload as a point mass on its body (what the plant
+        carries and the file does not say, e.g. ore caked on the bucket wheel)."""
         self.path = Path(path)
         if not self.path.is_file():
             raise ModelError(f"{self.path}: MJCF file not found")
         try:
-            self.model = mujoco.MjModel.from_xml_path(str(self.path))
+            spec = mujoco.MjSpec.from_file(str(self.path))
+            for i, payload in enumerate(payloads):
+                body = spec.body(payload.body)
+                if body is None:
+                    raise ModelError(f"{self.path}: payload {i + 1} names a body '{payload.body}' that the model lacks")
+                body.add_body(
+                    name=f"payload_{i + 1}",
+                    pos=list(payload.pos),
+                    mass=payload.mass,
+                    inertia=[_POINT_INERTIA] * 3,
+                    explicitinertial=True,
+                )
+            self.model = spec.compile()
         except ValueError as exc:
             first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
             raise ModelError(f"{self.path}: MuJoCo cannot compile it: {first_line}") from None

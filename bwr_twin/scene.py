@@ -77,6 +77,13 @@ class ControllerSection:
 
 
 @dataclass(frozen=True)
+class Payload:
+    body: str  # the MJCF body that carries it
+    mass: float  # kg
+    pos: Vec3  # m, in that body's frame
+
+
+@dataclass(frozen=True)
 class PlantSection:
     """Unmodelled effects: they act on the plant only, never on the controller's belief."""
 
@@ -86,6 +93,7 @@ class PlantSection:
     gust_amplitude: float = 0.0  # m/s, uniform in [-a, a] around the mean
     gust_hold_time: float = 5.0  # s, how long one gust lasts
     air_density: float = 1.204  # kg/m^3, dry air at 20 degC
+    payload: tuple[Payload, ...] = ()  # point masses the plant carries and its MJCF does not show
 
 
 @dataclass(frozen=True)
@@ -116,25 +124,50 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     """Read, override and validate a scene file.
 
     Args:
-        path: the TOML file. Relative paths inside it are relative to its folder.
+        path: the TOML file. Relative paths inside it are relative to its folder. A top-level
+            `extends = "other.toml"` reads that scene first and lays this file's tables over it.
         overrides: dotted keys to replace before validation, e.g. {"simulation.seed": 3,
             "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
     """
     path = Path(path)
+    raw = _read_raw(path, ())
+    for key, value in (overrides or {}).items():
+        _set_dotted(raw, key, _resolve_paths(value, Path.cwd()) if _is_path_key(key) else value, path)
+    scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
+    _check_rules(scene)
+    return scene
+
+
+def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
+    """The file's tables, paths made absolute, merged over the scene it extends."""
     if not path.is_file():
-        raise SceneError(f"{path}: scene file not found")
+        by = f" (extended by {extended_by[-1]})" if extended_by else ""
+        raise SceneError(f"{path}: scene file not found{by}")
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None
     except UnicodeDecodeError:
         raise SceneError(f"{path}: not a text file") from None
+    base = raw.pop("extends", None)
     raw = _resolve_paths(raw, path.parent)
-    for key, value in (overrides or {}).items():
-        _set_dotted(raw, key, _resolve_paths(value, Path.cwd()) if _is_path_key(key) else value, path)
-    scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
-    _check_rules(scene)
-    return scene
+    if base is None:
+        return raw
+    if not isinstance(base, str):
+        raise SceneError(f"{path}: 'extends' must be a file path, got {base!r}")
+    base_path = (path.parent / base).resolve()
+    chain = extended_by + (path.resolve(),)
+    if base_path in chain:
+        raise SceneError(f"{path}: 'extends' makes a cycle through {base_path.name}")
+    return _merged(_read_raw(base_path, chain), raw)
+
+
+def _merged(base: dict, over: dict) -> dict:
+    """`over` laid over `base`: tables merge key by key, anything else replaces."""
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 def _rename_tables(raw: dict) -> dict:
@@ -278,6 +311,9 @@ def _check_rules(scene: Scene) -> None:
     for key, vec in (("disturbance.amplitude", scene.disturbance.amplitude), ("plant.frictionloss", scene.plant.frictionloss)):
         if vec is not None and min(vec) < 0:
             raise SceneError(f"{p}: '{key}' must be >= 0 on every axis, got {list(vec)}")
+    for i, payload in enumerate(scene.plant.payload):
+        if not payload.mass > 0:
+            raise SceneError(f"{p}: 'plant.payload[{i}].mass' must be > 0, got {payload.mass}")
     for key, value in (("plant.gust_amplitude", scene.plant.gust_amplitude), ("plant.wind_speed", scene.plant.wind_speed), ("plant.air_density", scene.plant.air_density)):
         if value < 0:
             raise SceneError(f"{p}: '{key}' must be >= 0, got {value}")

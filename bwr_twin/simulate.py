@@ -65,7 +65,7 @@ def held_random(rng: np.random.Generator, amplitude, n_samples: int, period: flo
 
 def simulate(scene: Scene, *, progress: bool = False) -> RunResult:
     """Run the scene's reclaim headless. Raises BwrError subclasses on bad input or divergence."""
-    machine = Machine(scene.machine.mjcf)
+    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
     belief = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
     try:
         trajectory = Trajectory.plan(scene.trajectory, machine)

@@ -77,3 +77,28 @@ def test_scene_round_trips_to_plain_data():
     plain = scene.to_dict()
     assert plain["machine"]["mjcf"] == str(PAPER_MJCF)
     assert np.allclose(plain["trajectory"]["via_points"][2]["p"], [-55, -11, 2])
+
+
+def test_a_scene_extends_another_and_overrides_only_what_it_names():
+    shared = load_scene(SCENES / "paper_shared_gain.toml")
+    individual = load_scene(INDIVIDUAL)
+    assert shared.controller.output_gain == (0.001,) * 3
+    assert shared.trajectory == individual.trajectory and shared.encoders == individual.encoders
+    assert shared.controller.rule_base == individual.controller.rule_base
+
+
+def test_extends_cycle_and_missing_base_are_named(tmp_path):
+    (tmp_path / "a.toml").write_text('extends = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('extends = "a.toml"\n')
+    with pytest.raises(SceneError, match=r"b.toml: 'extends' makes a cycle through a.toml"):
+        load_scene(tmp_path / "a.toml")
+    (tmp_path / "c.toml").write_text('extends = "gone.toml"\n')
+    with pytest.raises(SceneError, match=r"gone.toml: scene file not found \(extended by .*c.toml\)"):
+        load_scene(tmp_path / "c.toml")
+
+
+def test_plant_payload_is_validated():
+    with pytest.raises(SceneError, match=r"'plant.payload\[0\].mass' must be > 0"):
+        load_scene(INDIVIDUAL, {"plant.payload": [{"body": "boom", "mass": -1.0, "pos": [0.0, 0.0, 0.0]}]})
+    with pytest.raises(SceneError, match=r"unknown key 'plant.payload\[0\].weight'"):
+        load_scene(INDIVIDUAL, {"plant.payload": [{"body": "boom", "weight": 1.0, "pos": [0.0, 0.0, 0.0]}]})
