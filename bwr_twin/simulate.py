@@ -13,9 +13,10 @@ import numpy as np
 
 from bwr_twin.controller import FuzzyModelController
 from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
-from bwr_twin.fuzzy import FuzzySurface, RuleBase
+from bwr_twin.fuzzy import FuzzySurface
 from bwr_twin.machine import Machine
 from bwr_twin.plant import Plant, mujoco_warnings
+from bwr_twin.rulebase import RuleBase
 from bwr_twin.scene import Scene
 from bwr_twin.trajectory import Trajectory
 

@@ -10,13 +10,12 @@ from bwr_twin.errors import SceneError
 from bwr_twin.fuzzy import (
     CACHE_ENV,
     DEFAULT_GRID_POINTS,
-    PAPER_RULES,
     FuzzySurface,
-    RuleBase,
     build_control_system,
     default_cache_dir,
     skfuzzy_compute,
 )
+from bwr_twin.rulebase import PAPER_RULES, RuleBase
 
 PAPER_FILE = SCENES / "rulebases" / "paper_table2.toml"
 TABLE_2 = """\

@@ -1,6 +1,5 @@
 """Every MJCF under mjcf/ compiles, meets the model contract and steps quietly."""
 
-from pathlib import Path
 
 import mujoco
 import numpy as np

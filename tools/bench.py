@@ -23,8 +23,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bwr_twin.fuzzy import FuzzySurface, RuleBase, skfuzzy_compute  # noqa: E402
+from bwr_twin.fuzzy import FuzzySurface, skfuzzy_compute  # noqa: E402
 from bwr_twin.machine import Machine  # noqa: E402
+from bwr_twin.rulebase import RuleBase  # noqa: E402
 from bwr_twin.scene import load_scene  # noqa: E402
 from bwr_twin.simulate import simulate  # noqa: E402
 

@@ -21,7 +21,8 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout, installed or not
 from bwr_twin.errors import BwrError  # noqa: E402
-from bwr_twin.fuzzy import PAPER_RULES, FuzzySurface, RuleBase, build_control_system  # noqa: E402
+from bwr_twin.fuzzy import FuzzySurface, build_control_system  # noqa: E402
+from bwr_twin.rulebase import PAPER_RULES, RuleBase  # noqa: E402
 
 TITLE_INPUTS = {"e": "position error e (scaled)", "ec": "velocity error ec (scaled)", "u": "output u"}
 
