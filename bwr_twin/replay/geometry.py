@@ -50,14 +50,14 @@ class VisualGeom:
     vertices: np.ndarray
     faces: np.ndarray
 
-    @property
-    def extent(self) -> np.ndarray:
-        """(3,) size of the mesh's bounding box in the geom's frame, m."""
-        return self.vertices.max(axis=0) - self.vertices.min(axis=0)
-
 
 def body_name(model: mujoco.MjModel, body: int) -> str:
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
+
+
+def _type_name(kind: int) -> str:
+    """'box' for mjGEOM_BOX, and so on."""
+    return _GEOM(kind).name[len("mjGEOM_") :].lower()
 
 
 def visual_geoms(machine: Machine) -> list[VisualGeom]:
@@ -81,7 +81,7 @@ def visual_geoms(machine: Machine) -> list[VisualGeom]:
             VisualGeom(
                 name=name,
                 body=body_name(model, weld),
-                type=_GEOM(model.geom_type[g]).name[len("mjGEOM_"):].lower(),
+                type=_type_name(model.geom_type[g]),
                 size=tuple(float(s) for s in model.geom_size[g]),
                 position=position,
                 wxyz=wxyz,
@@ -125,7 +125,7 @@ def _mesh(model: mujoco.MjModel, g: int, where: str) -> tuple[np.ndarray, np.nda
         f0, nf = model.mesh_faceadr[mesh], model.mesh_facenum[mesh]
         return model.mesh_vert[v0 : v0 + nv].copy(), model.mesh_face[f0 : f0 + nf].copy()
     raise ModelError(
-        f"{where}: type {_GEOM(kind).name[len('mjGEOM_'):].lower()} cannot be drawn; visual geoms "
+        f"{where}: type {_type_name(kind)} cannot be drawn; visual geoms "
         "must be boxes, cylinders, capsules, spheres, ellipsoids, meshes or planes"
     )
 
@@ -136,6 +136,7 @@ def _mesh(model: mujoco.MjModel, g: int, where: str) -> tuple[np.ndarray, np.nda
 def box(half_sizes) -> tuple[np.ndarray, np.ndarray]:
     """A box with the given half-sizes: 8 corners, 12 triangles (draw with flat shading)."""
     corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    # fmt: off
     faces = np.array(
         [
             [0, 1, 3], [0, 3, 2],  # -X
@@ -146,6 +147,7 @@ def box(half_sizes) -> tuple[np.ndarray, np.ndarray]:
             [1, 5, 7], [1, 7, 3],  # +Z
         ]
     )
+    # fmt: on
     return corners * np.asarray(half_sizes, dtype=float), faces
 
 
@@ -173,14 +175,18 @@ def _surface_of_revolution(profile: np.ndarray, segments: int) -> tuple[np.ndarr
     return vertices, np.concatenate(faces)
 
 
-def cylinder(radius: float, half_length: float, segments: int = ROUND_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+def cylinder(
+    radius: float, half_length: float, segments: int = ROUND_SEGMENTS
+) -> tuple[np.ndarray, np.ndarray]:
     """A closed cylinder along Z; cap rims have their own vertices so that shading keeps the edge sharp."""
     h = half_length
     profile = np.array([[0, -h], [radius, -h], [radius, -h], [radius, h], [radius, h], [0, h]], dtype=float)
     return _surface_of_revolution(profile, segments)
 
 
-def capsule(radius: float, half_length: float, segments: int = ROUND_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+def capsule(
+    radius: float, half_length: float, segments: int = ROUND_SEGMENTS
+) -> tuple[np.ndarray, np.ndarray]:
     """A cylinder along Z with hemispherical ends."""
     polar = np.linspace(0.0, np.pi / 2, segments // 4 + 1)
     bottom = np.column_stack([radius * np.sin(polar), -half_length - radius * np.cos(polar)])
@@ -196,19 +202,40 @@ def ellipsoid(radii, segments: int = ROUND_SEGMENTS) -> tuple[np.ndarray, np.nda
 
 
 class BodyPoser:
-    """World poses of the moving weld bodies for joint values q, from MuJoCo's own kinematics."""
+    """World poses of the weld bodies that carry visual geoms, for joint values q, from MuJoCo's
+    own kinematics. `moving` tells which of them move at all (not the world)."""
 
     def __init__(self, machine: Machine):
         self.model = machine.model
         self.data = mujoco.MjData(self.model)
-        welds = {int(self.model.body_weldid[self.model.geom_bodyid[g]]) for g in range(self.model.ngeom)
-                 if self.model.geom_group[g] == VISUAL_GROUP}
+        welds = {
+            int(self.model.body_weldid[self.model.geom_bodyid[g]])
+            for g in range(self.model.ngeom)
+            if self.model.geom_group[g] == VISUAL_GROUP
+        }
         self.bodies = sorted(welds)
         self.names = [body_name(self.model, b) for b in self.bodies]
         self.moving = [b != 0 for b in self.bodies]  # the world body never moves
 
     def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(positions (b, 3) in m, orientations (b, 4) as wxyz) of `self.bodies` for q (travel, slew, luff)."""
+        """Positions (b, 3) in m and orientations (b, 4) as wxyz of `self.bodies` at joint values q."""
         self.data.qpos[:] = q
         mujoco.mj_kinematics(self.model, self.data)  # positions only; no dynamics needed to draw
         return self.data.xpos[self.bodies].copy(), self.data.xquat[self.bodies].copy()
+
+    def world_vertices(self, geoms: list[VisualGeom], q: np.ndarray) -> np.ndarray:
+        """(v, 3) every vertex of `geoms` in world coordinates at joint values q, m."""
+        positions, orientations = self.poses(q)
+        index = dict(zip(self.names, range(len(self.names))))
+        out = []
+        for geom in geoms:
+            b = index[geom.body]
+            in_body = geom.vertices @ _matrix(geom.wxyz).T + geom.position
+            out.append(in_body @ _matrix(orientations[b]).T + positions[b])
+        return np.concatenate(out)
+
+
+def _matrix(wxyz: np.ndarray) -> np.ndarray:
+    matrix = np.empty(9)
+    mujoco.mju_quat2Mat(matrix, np.asarray(wxyz, dtype=float))
+    return matrix.reshape(3, 3)

@@ -1,0 +1,182 @@
+"""The replay in a real headless Chromium: the page draws the machine, Play advances the time
+slider, and the exported HTML plays from a file:// URL. Screenshots go to test-artifacts/.
+
+The browser is Debian's `chromium`, driven by Python playwright (never `playwright install`).
+Without it these tests skip and say why; with CI=true a missing browser fails them instead.
+WebGL renders in software there, so waits are generous.
+"""
+
+import io
+import os
+import shutil
+import tempfile
+import time
+from collections import Counter
+
+import numpy as np
+import pytest
+from conftest import ROOT, SCENES
+
+from bwr_twin.replay import Recording, ReplayServer, export_html
+from bwr_twin.replay.geometry import visual_geoms
+
+pytestmark = pytest.mark.browser
+
+ARTIFACTS = ROOT / "test-artifacts"
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--enable-unsafe-swiftshader",
+]
+WAIT_MS = 90_000  # software WebGL on a busy 2-core machine
+MACHINE_SHARE = 1e-3  # of the screenshot's pixels in the machine's colour: it is on the canvas
+SHORT_PATH = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
+
+
+def _unavailable(reason: str):
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"{reason}; CI=true requires the browser tests to run")
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        _unavailable("no chromium on PATH (apt-get install --no-install-recommends chromium)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        _unavailable("the playwright Python package is not installed (pip install -e '.[dev]')")
+    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
+        context = playwright.chromium.launch_persistent_context(
+            profile,
+            executable_path=chromium,
+            headless=True,
+            args=CHROMIUM_ARGS,
+            viewport={"width": 1280, "height": 800},
+        )
+        yield context
+        context.close()
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    from bwr_twin.results import write_run
+    from bwr_twin.scene import load_scene
+    from bwr_twin.simulate import simulate
+
+    run_dir = tmp_path_factory.mktemp("browser") / "short"
+    write_run(
+        simulate(load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_PATH})),
+        run_dir,
+        plots=False,
+    )
+    return Recording.from_run_dir(run_dir)
+
+
+def wait_for_machine(page, geoms) -> None:
+    """Until the renderer's last frame drew at least the machine's triangles."""
+    triangles = sum(len(g.faces) for g in geoms)
+    page.wait_for_function(
+        f"() => (window.__viserTestpoints?.rendererInfo?.render?.triangles ?? 0) >= {triangles}",
+        timeout=WAIT_MS,
+        polling=100,
+    )
+
+
+def machine_pixels(png: bytes, geoms) -> float:
+    """Share of the picture in the machine's commonest colour (any shade of it)."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
+    colour = np.array(Counter(g.rgba[:3] for g in geoms).most_common(1)[0][0])
+    chromaticity = rgb / np.maximum(rgb.sum(axis=2, keepdims=True), 1.0)
+    close = np.linalg.norm(chromaticity - colour / colour.sum(), axis=2) < 0.04
+    return float(np.mean(close & (rgb.sum(axis=2) > 60)))
+
+
+def screenshot_showing_machine(page, geoms, name: str) -> bytes:
+    """A screenshot, saved to test-artifacts/, once the machine's colour shows (the page fades in)."""
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while True:
+        png = page.screenshot()
+        if machine_pixels(png, geoms) > MACHINE_SHARE or time.monotonic() > deadline:
+            break
+        time.sleep(1.0)
+    ARTIFACTS.mkdir(exist_ok=True)
+    (ARTIFACTS / name).write_bytes(png)
+    return png
+
+
+def test_page_renders_the_machine_and_play_advances_time(browser, recording):
+    with ReplayServer(recording, port=0) as server:
+        page = browser.new_page()
+        try:
+            page.goto(server.url)
+            wait_for_machine(page, server.view.geoms)
+            play = page.get_by_role("button", name="Play")
+            play.wait_for(timeout=WAIT_MS)
+            time_slider = page.locator('[role="slider"][aria-valuemax="20"]')  # the run lasts 20 s
+            before = float(time_slider.get_attribute("aria-valuenow"))
+            play.click()
+            page.wait_for_function(
+                "before => Number(document.querySelector('[role=slider][aria-valuemax=\"20\"]')"
+                ".getAttribute('aria-valuenow')) > before + 1",
+                arg=before,
+                timeout=WAIT_MS,
+            )
+            assert server.player.playing or server.player.time == server.player.end
+            png = screenshot_showing_machine(page, server.view.geoms, "replay.png")
+            assert machine_pixels(png, server.view.geoms) > MACHINE_SHARE
+        finally:
+            page.close()
+
+
+def test_two_tabs_share_one_timeline(browser, recording):
+    with ReplayServer(recording, port=0) as server:
+        server.player.set_speed(1)  # the 20 s run must not end while the tabs catch up
+        tabs = [browser.new_page(), browser.new_page()]
+        try:
+            for tab in tabs:
+                tab.set_viewport_size(
+                    {"width": 800, "height": 600}
+                )  # two software-rendered tabs: keep them small
+                tab.goto(server.url)
+                tab.get_by_role("button", name="Play").wait_for(timeout=WAIT_MS)
+            tabs[0].get_by_role("button", name="Play").click()
+            tabs[1].get_by_role("button", name="Pause").wait_for(timeout=WAIT_MS)  # the other tab sees it
+            tabs[1].get_by_role("button", name="Pause").click()
+            tabs[0].get_by_role("button", name="Play").wait_for(timeout=WAIT_MS)
+            slider = '[role="slider"][aria-valuemax="20"]'
+            server.player.seek(12.0)
+            for tab in tabs:
+                tab.wait_for_function(
+                    f"() => Number(document.querySelector('{slider}').getAttribute('aria-valuenow')) === 12",
+                    timeout=WAIT_MS,
+                )
+        finally:
+            for tab in tabs:
+                tab.close()
+
+
+def test_export_plays_from_a_file_url(browser, recording, tmp_path):
+    out = tmp_path / "replay.html"
+    export_html(recording, out)
+    geoms = visual_geoms(recording.plan.machine)
+    page = browser.new_page()
+    fetched = []
+    page.on("request", lambda request: fetched.append(request.url))
+    try:
+        page.goto(out.resolve().as_uri())
+        wait_for_machine(page, geoms)
+        png = screenshot_showing_machine(page, geoms, "export.png")
+        assert machine_pixels(png, geoms) > MACHINE_SHARE
+        assert [url for url in fetched if not url.startswith(("file:", "data:", "blob:"))] == []
+    finally:
+        page.close()
