@@ -162,6 +162,13 @@ def summary_table(metrics: dict) -> str:
     return "\n".join(lines)
 
 
+def _umask() -> int:
+    """The process's umask: reading it means setting it, so it is set back at once."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def staged_directory(out_dir: Path, *, overwrite: bool = False) -> Iterator[Path]:
     """A temporary sibling of `out_dir` that is renamed into place only if the block succeeds.
@@ -176,6 +183,7 @@ def staged_directory(out_dir: Path, *, overwrite: bool = False) -> Iterator[Path
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
     try:
+        staging.chmod(0o777 & ~_umask())  # mkdtemp's 0700 would make results private
         yield staging
         if out_dir.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))

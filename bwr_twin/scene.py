@@ -178,11 +178,12 @@ def _rename_tables(raw: dict) -> dict:
     return out
 
 
-_PATH_KEYS = {"mjcf", "controller_mjcf", "rule_base"}
+# Keys whose values are file paths, relative to the file that names them.
+PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
 
 
 def _is_path_key(dotted: str) -> bool:
-    return dotted.rsplit(".", 1)[-1] in _PATH_KEYS
+    return dotted.rsplit(".", 1)[-1] in PATH_KEYS
 
 
 def _resolve_paths(raw: Any, base: Path) -> Any:
@@ -194,7 +195,7 @@ def _resolve_paths(raw: Any, base: Path) -> Any:
     return {
         k: (
             str((base / v).resolve())
-            if k in _PATH_KEYS and isinstance(v, str)
+            if k in PATH_KEYS and isinstance(v, str)
             else _resolve_paths(v, base)
             if isinstance(v, dict)
             else v

@@ -1,0 +1,336 @@
+"""`python -m bwr_twin.batch`: sweep files expand as documented, every run leaves what
+`bwr_twin.run` leaves, a batch survives kill -9 and Ctrl-C, failures are recorded, two batches
+never share a directory, a Dask cluster gives the local pool's results, and the paper's two
+controllers reproduce Fig. 10 and Fig. 13 on every seed."""
+
+import csv
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from conftest import PAPER_MJCF, ROOT, SCENES, VARIANT_MJCF
+
+from bwr_twin.batch import BatchLock
+from bwr_twin.errors import SceneError
+from bwr_twin.machine import AXES
+from bwr_twin.sweep import load_sweep
+
+SHORT_PATH = """[path]
+frame = "paper"
+via_points = [
+  { t = 0.0, p = [0.0, -11.0, 55.0] },
+  { t = 20.0, p = [-3.0, -11.0, 54.0] },
+]
+"""
+# Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
+FAR_PATH = SHORT_PATH.replace("54.0] },\n]", "54.0] },\n  { t = 40.0, p = [-55.0, -11.0, 2.0] },\n]")
+SHORT_SWEEP = """scene = "short.toml"
+seeds = 2
+[vary]
+controller.output_gain.travel = [0.01, 0.02]
+"""
+BASE = 'scene = "short.toml"\n'  # sweep file texts, next to short.toml
+VARY = BASE + "[vary]\n"
+TIMESTEP = VARY + "simulation.timestep = "
+RUN_FILES = {"metrics.json", "timeseries.csv", "scene.json", "positions.png", "velocities.png",
+             "accelerations.png", "fuzzy_outputs.png", "errors_position.png", "errors_velocity.png",
+             "errors_acceleration.png", "drive_forces.png", "cp_path.png"}
+
+
+def base_scene(folder, path_table=SHORT_PATH):
+    """The individual-gains scene over a short path, with absolute file paths, in `folder`."""
+    text = (SCENES / "paper_individual_gains.toml").read_text()
+    start, end = text.index("[path]"), text.index("[simulation]")
+    text = text[:start] + path_table + "\n" + text[end:]
+    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "short.toml").write_text(text)
+    return folder / "short.toml"
+
+
+def write_sweep(folder, text, path_table=SHORT_PATH):
+    base_scene(folder, path_table)
+    (folder / "sweep.toml").write_text(text)
+    return folder / "sweep.toml"
+
+
+def batch_cli(*args, **popen):
+    command = [sys.executable, "-m", "bwr_twin.batch", *map(str, args)]
+    if popen:
+        return subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                **popen)
+    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, check=False)
+
+
+def run_dirs(out):
+    return sorted(p.name for p in out.iterdir() if p.is_dir() and p.name[0].isdigit()) if out.is_dir() else []
+
+
+def debris(out):
+    return [p.name for p in [*out.iterdir(), *out.glob("plots/*")] if p.name.startswith(".")]
+
+
+def summary_rows(out):
+    with open(out / "summary.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def same_results(a, b):
+    """Identical run directories (names, files, metrics and time series bytes) and summaries."""
+    assert run_dirs(a) == run_dirs(b)
+    for name in run_dirs(a):
+        for file in ("metrics.json", "timeseries.csv", "scene.json"):
+            assert (a / name / file).read_bytes() == (b / name / file).read_bytes(), (name, file)
+    assert (a / "summary.csv").read_bytes() == (b / "summary.csv").read_bytes()
+
+
+@pytest.fixture(scope="module")
+def short_batch(tmp_path_factory):
+    """An uninterrupted batch of the short sweep (2 gains x 2 seeds, 20 s each): the reference."""
+    folder = tmp_path_factory.mktemp("short")
+    sweep = write_sweep(folder, SHORT_SWEEP)
+    out = folder / "reference"
+    proc = batch_cli(sweep, "--out", out, "--workers", 2)
+    assert proc.returncode == 0, proc.stderr
+    return sweep, out, proc
+
+
+# --- the sweep file ------------------------------------------------------------------------------
+
+
+def test_sweep_is_the_cartesian_product_with_seeds_innermost(tmp_path):
+    mjcf = os.path.relpath(PAPER_MJCF, tmp_path)  # paths in a sweep are relative to the sweep file
+    sweep = load_sweep(write_sweep(tmp_path, f"""scene = "short.toml"
+seeds = [3, 5]
+[vary]
+controller.output_gain.slew = {{ start = 0.02, stop = 0.06, num = 3 }}
+"controller.output_gain.luff" = [0.05]
+disturbance.hold_time = {{ start = 0.01, stop = 0.03, step = 0.01 }}
+machine.mjcf = ["{mjcf}"]
+"""))
+    assert sweep.keys == (
+        "controller.output_gain.slew", "controller.output_gain.luff", "disturbance.hold_time", "machine.mjcf")
+    assert len(sweep.runs) == 3 * 1 * 3 * 1 * 2
+    first, second = sweep.runs[0].run_id, sweep.runs[1].run_id
+    assert first == "0000-output_gain.slew=0.02-output_gain.luff=0.05-hold_time=0.01-mjcf=bwr-seed=3"
+    assert second == "0001-output_gain.slew=0.02-output_gain.luff=0.05-hold_time=0.01-mjcf=bwr-seed=5"
+    hold_times = [run.scene.disturbance.hold_time for run in sweep.runs[:6:2]]
+    assert hold_times == [0.01, 0.02, 0.03]  # a step range keeps a stop on its grid
+    last = sweep.runs[-1].scene
+    assert last.controller.output_gain == (0.01, 0.06, 0.05)  # one axis varied, the others the base's
+    assert last.simulation.seed == 5 and last.machine.mjcf == PAPER_MJCF
+    assert len({run.run_id for run in sweep.runs}) == len(sweep.runs)
+    assert load_sweep(tmp_path / "sweep.toml").runs == sweep.runs  # names are stable: resume relies on it
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (BASE + "colour = 1", r"unknown key 'colour' \(valid here: scene, seeds, vary\)"),
+        ("seeds = 2", r"missing key 'scene'"),
+        ('scene = "missing.toml"', r"'scene' names a file that does not exist"),
+        (BASE + "seeds = 0", r"'seeds' must be a count"),
+        (BASE + "seeds = [1, 1]", r"'seeds' lists 1 twice"),
+        (TIMESTEP + "[]", r"'vary.simulation.timestep' is an empty list"),
+        (TIMESTEP + "0.01", r"'vary.simulation.timestep' must be a list of values or a range"),
+        (TIMESTEP + "{ start = 0.1, stop = 0.2 }", r"range '.*' needs exactly one of 'num' and 'step'"),
+        (TIMESTEP + "{ start = 0.1, stop = 0.2, step = -1 }", r"'vary.simulation.timestep.step' must be a number"),
+        (TIMESTEP + "{ start = 0.1, stop = 0.2, num = 2, by = 1 }", r"unknown key 'vary.simulation.timestep.by'"),
+        (VARY + "simulation.seed = [1, 2]", r"give the seeds as the top-level 'seeds'"),
+        (VARY + '"controller.output_gain" = [[1.0, 1.0, 1.0]]\ncontroller.output_gain.travel = [0.1]',
+         r"both 'controller.output_gain' and its axis"),
+        (VARY + "simulation.colour = [1, 2]", r"short.toml: unknown key 'simulation.colour'"),
+        (VARY + 'machine.mjcf = ["nowhere.xml"]', r"'machine.mjcf' names a file that does not exist"),
+        (VARY + 'controller.output_gain.travel = ["a"]', r"'controller.output_gain\[0\]' must be a number"),
+    ],
+    ids=["unknown-key", "no-scene", "scene-missing", "seeds-zero", "seeds-twice", "empty-list", "not-a-list",
+         "range-no-num", "range-step", "range-key", "seed-in-vary", "vector-and-axis", "scene-key", "mjcf",
+         "type"],
+)
+def test_bad_sweep_files_are_refused_naming_file_and_key(tmp_path, text, message):
+    with pytest.raises(SceneError, match=message) as caught:
+        load_sweep(write_sweep(tmp_path, text))
+    assert str(caught.value).startswith(f"{tmp_path / 'sweep.toml'}: ")
+
+
+def test_bad_sweep_exits_2_with_one_line_and_writes_nothing(tmp_path):
+    proc = batch_cli(write_sweep(tmp_path, BASE + "seeds = -1"), "--out", tmp_path / "out")
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: ") and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+# --- results, resume, interruption ---------------------------------------------------------------
+
+
+def test_each_run_writes_what_bwr_twin_run_writes(short_batch, tmp_path):
+    sweep, out, proc = short_batch
+    assert "4 runs, 4 ok, 0 failed" in proc.stdout
+    assert run_dirs(out) == ["0000-output_gain.travel=0.01-seed=1", "0001-output_gain.travel=0.01-seed=2",
+                             "0002-output_gain.travel=0.02-seed=1", "0003-output_gain.travel=0.02-seed=2"]
+    single = tmp_path / "single"
+    command = [sys.executable, "-m", "bwr_twin.run", sweep.parent / "short.toml", "--out", single, "--seed", 2]
+    run = subprocess.run(list(map(str, command)), cwd=ROOT, capture_output=True, text=True, check=False)
+    assert run.returncode == 0, run.stderr
+    batch_run = out / "0001-output_gain.travel=0.01-seed=2"  # the base scene's own gains
+    assert {p.name for p in batch_run.iterdir()} == {p.name for p in single.iterdir()} == RUN_FILES
+    for file in ("metrics.json", "timeseries.csv", "scene.json"):
+        assert (batch_run / file).read_bytes() == (single / file).read_bytes(), file
+
+
+def test_summary_has_one_row_per_run_in_sweep_order_and_plots(short_batch):
+    _, out, _ = short_batch
+    rows = summary_rows(out)
+    assert [row["run"] for row in rows] == run_dirs(out)
+    varied = [(row["controller.output_gain.travel"], row["seed"]) for row in rows]
+    assert varied == [("0.01", "1"), ("0.01", "2"), ("0.02", "1"), ("0.02", "2")]
+    for row in rows:
+        assert row["status"] == "ok" and row["error"] == ""
+        metrics = json.loads((out / row["run"] / "metrics.json").read_text())
+        for axis in AXES:
+            assert float(row[f"{axis}.position_error_max"]) == metrics[axis]["position_error_max"]
+    assert (out / "plots" / "error_distributions.png").stat().st_size > 20_000
+    assert not debris(out)
+
+
+def test_rerun_skips_what_is_complete(short_batch):
+    sweep, out, _ = short_batch
+    before = {name: (out / name / "metrics.json").stat().st_mtime_ns for name in run_dirs(out)}
+    proc = batch_cli(sweep, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "(4 already done, skipped)" in proc.stdout
+    assert {name: (out / name / "metrics.json").stat().st_mtime_ns for name in run_dirs(out)} == before
+
+
+def start_and_wait_for_first_run(sweep, out):
+    proc = batch_cli(sweep, "--out", out, "--workers", 2, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not run_dirs(out):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.05)
+    return proc
+
+
+def test_kill_9_then_rerun_gives_the_uninterrupted_result(short_batch, tmp_path):
+    sweep, reference, _ = short_batch
+    out = tmp_path / "killed"
+    proc = start_and_wait_for_first_run(sweep, out)
+    os.killpg(proc.pid, signal.SIGKILL)  # the batch and its workers, mid-run
+    proc.wait()
+    survivors = run_dirs(out)
+    assert 0 < len(survivors) < 4
+    for name in survivors:  # what is there is complete
+        assert {p.name for p in (out / name).iterdir()} == RUN_FILES
+    assert len(summary_rows(out)) == 4  # the summary is whole, if not up to date
+    assert (out / ".lock").exists()  # a dead batch's lock file: no longer locked
+    rerun = batch_cli(sweep, "--out", out)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"({len(survivors)} already done, skipped)" in rerun.stdout
+    same_results(out, reference)
+    assert not debris(out)
+
+
+def test_ctrl_c_stops_promptly_and_keeps_only_complete_runs(short_batch, tmp_path):
+    sweep, _, _ = short_batch
+    out = tmp_path / "interrupted"
+    proc = start_and_wait_for_first_run(sweep, out)
+    interrupted = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)  # what a terminal sends to the whole foreground group
+    _, stderr = proc.communicate(timeout=30)
+    assert time.monotonic() - interrupted < 10
+    assert proc.returncode == 130
+    assert stderr.strip().splitlines()[-1].startswith("interrupted: ") and "Traceback" not in stderr
+    assert 0 < len(run_dirs(out)) < 4 and not debris(out)
+    done = {row["run"]: row["status"] for row in summary_rows(out)}
+    assert {name for name, status in done.items() if status == "ok"} == set(run_dirs(out))
+    assert set(done.values()) == {"ok", "pending"}
+
+
+def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
+    sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{VARIANT_MJCF}"]\n', FAR_PATH)
+    out = tmp_path / "out"
+    proc = batch_cli(sweep, "--out", out, "--no-plots")
+    assert proc.returncode == 1, proc.stderr
+    assert "2 runs, 1 ok, 1 failed" in proc.stdout
+    ok, failed = summary_rows(out)
+    assert ok["status"] == "ok" and ok["error"] == "" and ok["travel.position_error_max"]
+    assert failed["status"] == "failed" and failed["travel.position_error_max"] == ""
+    assert re.search(r"via point 3 \(t = 40 s\) .* exceeds the horizontal reach", failed["error"])
+    assert {p.name for p in (out / failed["run"]).iterdir()} == {"error.txt", "scene.json"}
+    assert failed["error"] in proc.stderr
+
+    again = batch_cli(sweep, "--out", out, "--no-plots")  # deterministic: a failure is a result
+    assert again.returncode == 1 and "(2 already done, skipped)" in again.stdout
+    retried = batch_cli(sweep, "--out", out, "--no-plots", "--retry-failed")
+    assert retried.returncode == 1 and "(1 already done, skipped)" in retried.stdout
+    assert not debris(out)
+
+
+def test_a_changed_scene_is_not_mixed_with_earlier_runs(tmp_path):
+    sweep = write_sweep(tmp_path, BASE)
+    out = tmp_path / "out"
+    assert batch_cli(sweep, "--out", out, "--no-plots").returncode == 0
+    scene = tmp_path / "short.toml"
+    scene.write_text(scene.read_text().replace("amplitude = [100.0,", "amplitude = [50.0,"))
+    proc = batch_cli(sweep, "--out", out, "--no-plots")
+    assert proc.returncode == 2
+    assert re.search(r"was run with other settings \(disturbance.amplitude\) than this sweep", proc.stderr)
+
+
+def test_a_second_batch_on_the_same_directory_is_refused(tmp_path):
+    sweep = write_sweep(tmp_path, BASE)
+    out = tmp_path / "out"
+    with BatchLock(out):
+        proc = batch_cli(sweep, "--out", out)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"error: {out} is in use by another batch (pid {os.getpid()})"
+    assert run_dirs(out) == [] and not debris(out)
+
+
+# --- Dask -----------------------------------------------------------------------------------------
+
+
+def test_a_dask_cluster_gives_the_local_pools_results(short_batch, tmp_path):
+    from distributed import LocalCluster
+
+    sweep, reference, _ = short_batch
+    out = tmp_path / "dask"
+    loopback = {"host": "127.0.0.1", "dashboard_address": None}
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, **loopback) as cluster:
+        proc = batch_cli(sweep, "--out", out, "--scheduler", cluster.scheduler_address, "--no-plots")
+    assert proc.returncode == 0, proc.stderr
+    same_results(out, reference)
+
+
+def test_an_unreachable_scheduler_exits_2(tmp_path):
+    sweep = write_sweep(tmp_path, BASE)
+    proc = batch_cli(sweep, "--out", tmp_path / "out", "--scheduler", "tcp://127.0.0.1:9")
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: cannot reach the Dask scheduler at tcp://127.0.0.1:9"), proc.stderr
+
+
+# --- the paper, on every seed ---------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_ci_sweep_reproduces_the_paper_on_every_seed(tmp_path):
+    out = tmp_path / "ci"
+    proc = batch_cli("scenes/sweeps/ci_reproduction.toml", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    rows = summary_rows(out)
+    assert len(rows) == 8 and {row["status"] for row in rows} == {"ok"}
+    for row in rows:
+        gains = json.loads(row["controller.output_gain"])
+        if gains == [0.001, 0.001, 0.001]:  # Fig. 10: about -4 m on travel near t = 340 s
+            assert 3.0 <= abs(float(row["travel.position_error_max"])) <= 6.0, row["run"]
+            assert 300.0 <= float(row["travel.position_error_max_time"]) <= 370.0, row["run"]
+        else:  # Fig. 13: about 0.02 m and 0.01 m/s
+            assert gains == [0.01, 0.04, 0.06]
+            assert abs(float(row["travel.position_error_max"])) <= 0.03, row["run"]
+            for axis in AXES:
+                assert abs(float(row[f"{axis}.velocity_error_max"])) <= 0.015, (row["run"], axis)
