@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run test bench figures clean
+.PHONY: setup run test bench bench-replay bench-batch clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,12 @@ test: setup
 
 bench: setup
 	$(PY) tools/bench.py
+
+bench-replay: setup
+	$(PY) tools/bench_replay.py
+
+bench-batch: setup
+	$(PY) tools/bench_batch.py
 
 clean:
 	rm -rf out .pytest_cache
