@@ -6,7 +6,8 @@
 
 DIR/<run id>/ holds exactly what `python -m bwr_twin.run` writes, or error.txt and scene.json
 for a run that failed. DIR/summary.csv has one row per run: the varied values, the status, the
-error and the metrics. DIR/plots/ has the error distributions and, for a 2-D grid, heat maps.
+error and the metrics. DIR/plots/ has the error distributions and, for a 2-D grid, heat maps
+(both from bwr_twin.batch_report, as is the spread of the errors printed at the end).
 
 Nothing is lost. Workers only compute; this process alone writes into DIR, under a lock, and
 every run directory and file appears complete or not at all (written under a temporary name,
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import csv
 import fcntl
 import json
 import multiprocessing
@@ -31,28 +31,32 @@ import tempfile
 import time
 import traceback
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-import numpy as np
 from tqdm import tqdm
 
+from bwr_twin.batch_report import (
+    PLOTS_DIR,
+    SUMMARY_FILE,
+    RunRecord,
+    Status,
+    spread_table,
+    write_plots,
+    write_summary,
+)
 from bwr_twin.errors import BwrError
-from bwr_twin.machine import AXES, UNITS, to_display
 from bwr_twin.results import METRICS_FILE, SCENE_FILE, staged_directory, write_run
 from bwr_twin.simulate import simulate
-from bwr_twin.sweep import PlannedRun, Sweep, load_sweep, parameter_label
+from bwr_twin.sweep import PlannedRun, Sweep, load_sweep
 
 ERROR_FILE = "error.txt"
-SUMMARY_FILE = "summary.csv"
-PLOTS_DIR = "plots"
 LOCK_FILE = ".lock"
 STAGING_PATTERNS = (".*.partial-*", ".*.old-*")  # temporary names; staged_directory's too
 SUMMARY_EVERY_S = 2.0  # s between rewrites of summary.csv while runs complete
 CONNECT_TIMEOUT_S = 10.0  # s to reach a Dask scheduler
-Status = Literal["ok", "failed", "pending", "not run"]
 
 
 @dataclass(frozen=True)
@@ -64,13 +68,6 @@ class Outcome:
     error: str  # one line
     files: dict[str, bytes]  # name -> content of the run directory; empty if not run
     metrics: dict | None
-
-
-@dataclass(frozen=True)
-class RunRecord:
-    status: Status
-    error: str = ""
-    metrics: dict | None = None
 
 
 def execute_run(run: PlannedRun, *, plots: bool, scratch: str | None) -> Outcome:
@@ -255,148 +252,6 @@ def _differences(recorded: Any, planned: Any, where: str = "") -> list[str]:
     return [] if recorded == planned else [where or "scene"]
 
 
-def _write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    temporary = path.parent / f".{path.name}.partial-{os.getpid()}"
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
-
-
-def write_summary(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> None:
-    """DIR/summary.csv: one row per planned run, in sweep order, metrics as metrics.json names them."""
-    metric_columns: dict[str, None] = {}  # ordered set
-    rows = []
-    for run in sweep.runs:
-        record = records[run.run_id]
-        metrics = _flat_metrics(record.metrics or {})
-        metric_columns.update(dict.fromkeys(metrics))
-        parameters = {key: json.dumps(value) if isinstance(value, (list, dict)) else value
-                      for key, value in run.parameters.items()}
-        rows.append({"run": run.run_id, **parameters, "seed": run.seed, "status": record.status,
-                     "error": record.error, **metrics})
-
-    def write(path: Path) -> None:
-        with open(path, "w", newline="") as f:
-            writer = csv.DictWriter(f, ["run", *sweep.keys, "seed", "status", "error", *metric_columns])
-            writer.writeheader()
-            writer.writerows(rows)
-
-    _write_atomically(out_dir / SUMMARY_FILE, write)
-
-
-def _flat_metrics(metrics: dict) -> dict[str, float]:
-    """The numbers of metrics.json, per axis as 'travel.position_error_max'; units in docs/batch.md."""
-    flat = {}
-    for name, value in metrics.items():
-        if name in AXES:
-            flat.update({f"{name}.{key}": v for key, v in value.items() if _is_number(v)})
-        elif _is_number(value):
-            flat[name] = value
-    return flat
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def write_plots(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> list[Path]:
-    """Error distributions over the successful runs, and heat maps when the sweep is a 2-D grid."""
-    done = [run for run in sweep.runs if records[run.run_id].status == "ok"]
-    if not done:
-        return []
-    import matplotlib
-
-    matplotlib.use("Agg")  # files only; no display needed
-    folder = out_dir / PLOTS_DIR
-    folder.mkdir(exist_ok=True)  # its files appear atomically, one by one
-    paths = [_distribution_plot(folder / "error_distributions.png", sweep, done, records)]
-    grid = sweep.grid_keys()
-    if grid:
-        paths.append(_heat_map(folder / "heat_map_position_error.png", sweep, grid, done, records))
-    return paths
-
-
-_QUANTITIES = (("position", "position_error_max", ""), ("velocity", "velocity_error_max", "/s"),
-               ("acceleration", "acceleration_error_max", "/s²"))
-_ANNOTATED_CELLS = 100  # up to this many heat map cells carry their value as text
-
-
-def _magnitude(record: RunRecord, axis: int, key: str) -> float:
-    """|metric| of one axis in display units (m, deg)."""
-    return abs(to_display(axis, record.metrics[AXES[axis]][key]))
-
-
-def _distribution_plot(path: Path, sweep: Sweep, done: list[PlannedRun],
-                       records: dict[str, RunRecord]) -> Path:
-    """One box per setting of the varied keys, over its seeds; every run also as a dot."""
-    import matplotlib.pyplot as plt
-
-    groups: dict[str, list[PlannedRun]] = {}
-    for run in done:
-        groups.setdefault(", ".join(run.value_labels.values()) or f"{len(done)} runs", []).append(run)
-    width = min(24.0, 10.0 + 0.4 * len(groups))  # in: many settings need room for their labels
-    fig, axes = plt.subplots(3, 3, figsize=(width, 9), sharex=True, constrained_layout=True)
-    for j in range(len(AXES)):
-        for column, (quantity, key, per) in enumerate(_QUANTITIES):
-            ax = axes[j, column]
-            values = [[_magnitude(records[run.run_id], j, key) for run in runs] for runs in groups.values()]
-            ax.boxplot(values, showfliers=False)
-            for x, group in enumerate(values, start=1):
-                ax.plot(x + np.linspace(-0.15, 0.15, len(group)), group, ".", color="C0", alpha=0.6)
-            ax.set_ylabel(f"{AXES[j]} [{UNITS[j]}{per}]")
-            ax.grid(alpha=0.3)
-            axes[0, column].set_title(f"|{quantity} error max|")
-    for ax in axes[-1]:
-        ax.set_xticks(range(1, len(groups) + 1), list(groups), rotation=30 if len(groups) > 1 else 0,
-                      ha="right" if len(groups) > 1 else "center")
-        ax.set_xlabel(", ".join(parameter_label(key) for key in sweep.keys) or "seeds")
-    fig.suptitle(f"{sweep.path.stem}: largest errors of {len(done)} runs (box: quartiles, whiskers: 1.5 IQR)")
-    _write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-    return path
-
-
-def _heat_map(path: Path, sweep: Sweep, grid: tuple[str, str], done: list[PlannedRun],
-              records: dict[str, RunRecord]) -> Path:
-    """|position error max| per axis over the grid, the median over seeds in each cell."""
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import LogNorm, Normalize
-
-    x_key, y_key = grid
-    xs = sorted({run.parameters[x_key] for run in sweep.runs})
-    ys = sorted({run.parameters[y_key] for run in sweep.runs})
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5), constrained_layout=True)
-    for j, ax in enumerate(axes):
-        cells: dict[tuple[int, int], list[float]] = {}
-        for run in done:
-            cell = (ys.index(run.parameters[y_key]), xs.index(run.parameters[x_key]))
-            cells.setdefault(cell, []).append(_magnitude(records[run.run_id], j, "position_error_max"))
-        median = np.full((len(ys), len(xs)), np.nan)  # NaN: no successful run in that cell
-        for (row, column), values in cells.items():
-            median[row, column] = np.median(values)
-        low, high = np.nanmin(median), np.nanmax(median)
-        norm = LogNorm(low, high) if low > 0 and high > 10 * low else Normalize(low, high)  # log: decades
-        mesh = ax.pcolormesh(np.ma.masked_invalid(median), norm=norm, cmap="viridis")
-        if median.size <= _ANNOTATED_CELLS:
-            for (row, column), value in np.ndenumerate(median):
-                if np.isfinite(value):
-                    ax.text(column + 0.5, row + 0.5, f"{value:.3g}", ha="center", va="center", fontsize=8,
-                            color="white" if norm(value) < 0.5 else "black")
-        ax.set_facecolor("0.85")
-        ax.set_xticks(np.arange(len(xs)) + 0.5, [f"{x:g}" for x in xs])
-        ax.set_yticks(np.arange(len(ys)) + 0.5, [f"{y:g}" for y in ys])
-        ax.set_xlabel(parameter_label(x_key))
-        ax.set_ylabel(parameter_label(y_key))
-        ax.set_title(f"{AXES[j]}: |position error max| [{UNITS[j]}]")
-        fig.colorbar(mesh, ax=ax, label=f"{AXES[j]} [{UNITS[j]}], median over seeds")
-    fig.suptitle(f"{sweep.path.stem}: largest position error over the grid (grey: no successful run)")
-    _write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-    return path
-
-
 def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: str | None, plots: bool,
               retry_failed: bool) -> int:
     """Run what is not done yet and summarise; the caller holds the lock. Returns the exit status."""
@@ -433,6 +288,7 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
     write_plots(out_dir, sweep, records)
     counts = {status: sum(record.status == status for record in records.values())
               for status in ("ok", "failed", "not run")}
+    print(spread_table(sweep, records))
     print(f"{sweep.path.name}: {len(sweep.runs)} runs, {counts['ok']} ok, {counts['failed']} failed, "
           f"{counts['not run']} not run ({len(sweep.runs) - len(todo)} already done, skipped) in "
           f"{time.perf_counter() - started:.1f} s; summary in {out_dir / SUMMARY_FILE}")

@@ -198,6 +198,18 @@ def test_summary_has_one_row_per_run_in_sweep_order_and_plots(short_batch):
     assert not debris(out)
 
 
+def test_the_spread_of_the_errors_is_printed_in_engineering_units(short_batch):
+    _, out, proc = short_batch
+    travel = sorted(abs(float(row["travel.position_error_max"])) for row in summary_rows(out))
+    line = next(line for line in proc.stdout.splitlines() if line.split()[:2] == ["travel", "position"])
+    smallest, median, largest = (float(part) for part in line.split()[2:7:2])
+    assert (smallest, largest) == pytest.approx((travel[0], travel[-1]), rel=1e-3)
+    assert median == pytest.approx((travel[1] + travel[2]) / 2, rel=1e-3)
+    assert line.endswith(" m")
+    slew = next(line for line in proc.stdout.splitlines() if line.split()[:2] == ["slew", "velocity"])
+    assert slew.endswith(" deg/s")
+
+
 def test_rerun_skips_what_is_complete(short_batch):
     sweep, out, _ = short_batch
     before = {name: (out / name / "metrics.json").stat().st_mtime_ns for name in run_dirs(out)}
