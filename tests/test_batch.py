@@ -283,6 +283,20 @@ def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
     assert not debris(out)
 
 
+def test_the_heavy_machine_runs_in_a_batch_by_swapping_the_mjcf(tmp_path):
+    heavy = ROOT / "mjcf" / "bwr_heavy.xml"
+    sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{heavy}"]\n')
+    out = tmp_path / "out"
+    proc = batch_cli(sweep, "--out", out, "--no-plots")
+    assert proc.returncode == 0, proc.stderr
+    paper, heavy_run = summary_rows(out)
+    assert heavy_run["run"].endswith("mjcf=bwr_heavy-seed=1")
+    scene = json.loads((out / heavy_run["run"] / "scene.json").read_text())
+    assert scene["machine"]["mjcf"] == str(heavy)
+    # 1,200 t against 7 t: the drives work far harder for the same path.
+    assert float(heavy_run["travel.drive_force_rms"]) > 50 * float(paper["travel.drive_force_rms"])
+
+
 def test_a_changed_scene_is_not_mixed_with_earlier_runs(tmp_path):
     sweep = write_sweep(tmp_path, BASE)
     out = tmp_path / "out"
