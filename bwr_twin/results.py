@@ -54,6 +54,15 @@ _SIGNALS = (
 )
 
 
+_KIND = {stem: kind for stem, _, kind in _SIGNALS}
+
+
+def column_name(stem: str, axis: int) -> str:
+    """The timeseries.csv column of one signal of one axis: column_name("qd_actual", 1) is
+    'slew_qd_actual_rad/s'."""
+    return f"{AXES[axis]}_{stem}_{_SI_UNITS[_KIND[stem]][axis]}"
+
+
 def _signed_max(x: np.ndarray) -> tuple[float, int]:
     """The value of largest magnitude, sign kept, and its index."""
     i = int(np.argmax(np.abs(x)))
@@ -117,10 +126,10 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
     if rows[-1] != len(result.time) - 1:
         rows = np.append(rows, len(result.time) - 1)  # always keep the last sample
     names, columns = ["time_s"], [result.time[rows]]
-    for stem, attribute, kind in _SIGNALS:
+    for stem, attribute, _ in _SIGNALS:
         values = getattr(result, attribute)
-        for j, axis in enumerate(AXES):
-            names.append(f"{axis}_{stem}_{_SI_UNITS[kind][j]}")
+        for j in range(len(AXES)):
+            names.append(column_name(stem, j))
             columns.append(values[rows, j])
     for label, cp in (("desired", result.cp_desired), ("actual", result.cp)):
         for c, coordinate in enumerate("xyz"):

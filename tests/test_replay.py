@@ -216,6 +216,7 @@ def test_run_directory_and_result_give_the_same_recording(short_run, short_recor
     for a, b in (
         (from_result.plan.time, short_recording.plan.time),
         (from_result.q_actual, short_recording.q_actual),
+        (from_result.qd_actual, short_recording.qd_actual),
         (from_result.plan.cp_desired, short_recording.plan.cp_desired),
         (from_result.cp_actual, short_recording.cp_actual),
     ):
@@ -227,6 +228,7 @@ def test_run_directory_and_result_give_the_same_recording(short_run, short_recor
 def test_plan_from_scene_matches_the_run(short_scene, short_recording):
     plan = Plan.from_scene(short_scene)
     assert np.allclose(plan.q_desired, short_recording.plan.q_desired, atol=1e-9)
+    assert np.allclose(plan.qd_desired, short_recording.plan.qd_desired, atol=1e-9)
 
 
 def test_instant_interpolates_between_records(short_recording):
@@ -251,6 +253,18 @@ def test_chart_marker_stands_at_the_current_time(short_recording):
         assert len(series) == len(chart.values) and all(len(s) == len(x) for s in series)
         assert np.all(np.diff(x) >= 0) and np.all(np.isfinite(np.concatenate(series)))
         assert x[np.argmax(marker)] == 7.3 and marker.max() == MARKER_TOP
+
+
+def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, short_recording):
+    result = short_run[1]
+    position, velocity, _ = charts(short_recording)
+    assert "Position error" in position.title and "Velocity error" in velocity.title
+    at = np.searchsorted(result.time, position.time[-1])  # the last charted sample, t = 20 s
+    assert position.values[0][-1] == pytest.approx(result.q_desired[at, 0] - result.q[at, 0], abs=1e-9)
+    assert velocity.values[1][-1] == pytest.approx(
+        np.degrees(result.qd_desired[at, 1] - result.qd[at, 1]), abs=1e-9
+    )
+    assert velocity.series[2]["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel error [m/s]"
 
 
 def test_cache_key_follows_what_decides_the_run(short_scene):

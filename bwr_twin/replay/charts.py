@@ -1,5 +1,5 @@
-"""uPlot charts of a recording: position error per axis and the joint trajectories, with a
-vertical line at the current time.
+"""uPlot charts of a recording: position and velocity error per axis and the joint trajectories,
+with a vertical line at the current time.
 
 uPlot has no marker API reachable from viser, and viser sends data as float arrays (no nulls,
 so no gaps), so the line is a series of its own on a fixed 0-1 scale: it lies below the plot
@@ -79,27 +79,30 @@ def _frame(
 
 
 def charts(recording: Recording) -> list[Chart]:
-    """The position-error chart and the joint-trajectory chart."""
+    """Position and velocity error per axis (the paper's Figs. 10 and 13) and the joint trajectories."""
     samples = decimate(recording.plan.time, CHART_STEP)
     time = recording.plan.time[samples]
-    error = recording.q_error[samples] * (1.0, DEGREES, DEGREES)
-    desired = recording.plan.q_desired[samples] * (1.0, DEGREES, DEGREES)
-    actual = recording.q_actual[samples] * (1.0, DEGREES, DEGREES)
+    display = (1.0, DEGREES, DEGREES)  # m and degrees
     scale = ("m", "deg", "deg")
-    unit = ("m", "deg", "deg")
-    error_chart = _frame(
-        "Position error (desired - actual)",
-        [_line(f"{axis} [{unit[j]}]", AXIS_COLOURS[j], scale[j]) for j, axis in enumerate(AXES)],
-        time,
-        [error[:, j] for j in range(3)],
-        left="travel error [m]",
-        right="slew, luff error [deg]",
-    )
+
+    def error_chart(title: str, error: np.ndarray, per: str) -> Chart:
+        error = error[samples] * display
+        return _frame(
+            title,
+            [_line(f"{axis} [{scale[j]}{per}]", AXIS_COLOURS[j], scale[j]) for j, axis in enumerate(AXES)],
+            time,
+            [error[:, j] for j in range(3)],
+            left=f"travel error [m{per}]",
+            right=f"slew, luff error [deg{per}]",
+        )
+
+    desired = recording.plan.q_desired[samples] * display
+    actual = recording.q_actual[samples] * display
     trajectory_lines, trajectory_values = [], []
     for j, axis in enumerate(AXES):
         trajectory_lines += [
-            _line(f"{axis} desired [{unit[j]}]", AXIS_COLOURS[j], scale[j], dash=(6.0, 4.0)),
-            _line(f"{axis} actual [{unit[j]}]", AXIS_COLOURS[j], scale[j]),
+            _line(f"{axis} desired [{scale[j]}]", AXIS_COLOURS[j], scale[j], dash=(6.0, 4.0)),
+            _line(f"{axis} actual [{scale[j]}]", AXIS_COLOURS[j], scale[j]),
         ]
         trajectory_values += [desired[:, j], actual[:, j]]
     trajectory_chart = _frame(
@@ -110,4 +113,8 @@ def charts(recording: Recording) -> list[Chart]:
         left="travel [m]",
         right="slew, luff [deg]",
     )
-    return [error_chart, trajectory_chart]
+    return [
+        error_chart("Position error (desired - actual)", recording.q_error, ""),
+        error_chart("Velocity error (desired - actual)", recording.qd_error, "/s"),
+        trajectory_chart,
+    ]

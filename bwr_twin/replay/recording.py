@@ -25,8 +25,6 @@ from bwr_twin.scene import Scene
 if TYPE_CHECKING:
     from bwr_twin.simulate import RunResult
 
-# SI unit of each joint in the column names of timeseries.csv (bwr_twin.results).
-Q_UNITS = ("m", "rad", "rad")
 _SIMULATION_SOURCES = Path(__file__).resolve().parents[1]  # bwr_twin/, whose code decides a run
 
 
@@ -39,6 +37,7 @@ class Plan:
     title: str
     time: np.ndarray
     q_desired: np.ndarray
+    qd_desired: np.ndarray
     cp_desired: np.ndarray
     via_times: np.ndarray  # (k,) s
     via_points: np.ndarray  # (k, 3) m
@@ -59,12 +58,13 @@ class Plan:
             raise type(exc)(f"{scene.path}: {exc}") from None
         period = scene.simulation.record_period
         time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
-        q_desired = trajectory.sample(time)[0]
+        q_desired, qd_desired, _ = trajectory.sample(time)
         return cls(
             machine=machine,
             title=scene.path.name,
             time=time,
             q_desired=q_desired,
+            qd_desired=qd_desired,
             cp_desired=machine.fk(q_desired),
             via_times=trajectory.times,
             via_points=trajectory.points,
@@ -93,12 +93,18 @@ class Recording:
 
     plan: Plan
     q_actual: np.ndarray  # (n, 3) m, rad, rad
+    qd_actual: np.ndarray  # (n, 3) m/s, rad/s, rad/s
     cp_actual: np.ndarray  # (n, 3) m
 
     @property
     def q_error(self) -> np.ndarray:
         """Desired minus actual, (n, 3) in m, rad, rad (the sign of DESIGN.md's metrics)."""
         return self.plan.q_desired - self.q_actual
+
+    @property
+    def qd_error(self) -> np.ndarray:
+        """Desired minus actual velocity, (n, 3) in m/s, rad/s, rad/s."""
+        return self.plan.qd_desired - self.qd_actual
 
     def at(self, t: float) -> Instant:
         """The state at time t (s), linear between records, held at the ends."""
@@ -153,8 +159,10 @@ class Recording:
     def _from_columns(
         cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str
     ) -> Recording:
-        def joints(kind: str) -> np.ndarray:
-            return np.column_stack([columns[f"{axis}_q_{kind}_{unit}"] for axis, unit in zip(AXES, Q_UNITS)])
+        from bwr_twin.results import column_name
+
+        def joints(stem: str) -> np.ndarray:
+            return np.column_stack([columns[column_name(stem, j)] for j in range(len(AXES))])
 
         def cp(kind: str) -> np.ndarray:
             return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
@@ -167,12 +175,13 @@ class Recording:
             machine=machine,
             title=title,
             time=columns["time_s"],
-            q_desired=joints("desired"),
+            q_desired=joints("q_desired"),
+            qd_desired=joints("qd_desired"),
             cp_desired=cp("desired"),
             via_times=np.array([v["t"] for v in path["via_points"]], dtype=float),
             via_points=via_points,
         )
-        return cls(plan, joints("actual"), cp("actual"))
+        return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"))
 
 
 def decimate(time: np.ndarray, step: float) -> np.ndarray:
