@@ -264,7 +264,7 @@ def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, shor
     assert velocity.values[1][-1] == pytest.approx(
         np.degrees(result.qd_desired[at, 1] - result.qd[at, 1]), abs=1e-9
     )
-    assert velocity.series[2]["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel error [m/s]"
+    assert velocity.series[2]["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel [m/s]"
 
 
 def test_cache_key_follows_what_decides_the_run(short_scene):

@@ -92,8 +92,8 @@ def charts(recording: Recording) -> list[Chart]:
             [_line(f"{axis} [{scale[j]}{per}]", AXIS_COLOURS[j], scale[j]) for j, axis in enumerate(AXES)],
             time,
             [error[:, j] for j in range(3)],
-            left=f"travel error [m{per}]",
-            right=f"slew, luff error [deg{per}]",
+            left=f"travel [m{per}]",
+            right=f"slew, luff [deg{per}]",
         )
 
     desired = recording.plan.q_desired[samples] * display
