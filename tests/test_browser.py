@@ -8,8 +8,6 @@ WebGL renders in software there, so waits are generous.
 
 import io
 import os
-import shutil
-import tempfile
 import time
 from collections import Counter
 
@@ -19,20 +17,11 @@ from conftest import ROOT, SCENES
 
 from bwr_twin.replay import Recording, ReplayServer, export_html
 from bwr_twin.replay.geometry import visual_geoms
+from bwr_twin.replay.headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
 pytestmark = pytest.mark.browser
 
 ARTIFACTS = ROOT / "test-artifacts"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--enable-unsafe-swiftshader",
-]
 WAIT_MS = 90_000  # software WebGL on a busy 2-core machine
 MACHINE_SHARE = 1e-3  # of the screenshot's pixels in the machine's colour: it is on the canvas
 SHORT_PATH = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
@@ -46,23 +35,15 @@ def _unavailable(reason: str):
 
 @pytest.fixture(scope="module")
 def browser():
-    chromium = shutil.which("chromium")
+    chromium = find_chromium()
     if chromium is None:
         _unavailable("no chromium on PATH (apt-get install --no-install-recommends chromium)")
     try:
-        from playwright.sync_api import sync_playwright
+        import playwright  # noqa: F401
     except ImportError:
         _unavailable("the playwright Python package is not installed (pip install -e '.[dev]')")
-    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
-        context = playwright.chromium.launch_persistent_context(
-            profile,
-            executable_path=chromium,
-            headless=True,
-            args=CHROMIUM_ARGS,
-            viewport={"width": 1280, "height": 800},
-        )
+    with chromium_context(chromium) as context:
         yield context
-        context.close()
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +65,7 @@ def wait_for_machine(page, geoms) -> None:
     """Until the renderer's last frame drew at least the machine's triangles."""
     triangles = sum(len(g.faces) for g in geoms)
     page.wait_for_function(
-        f"() => (window.__viserTestpoints?.rendererInfo?.render?.triangles ?? 0) >= {triangles}",
+        f"() => ({RENDERED_TRIANGLES})() >= {triangles}",
         timeout=WAIT_MS,
         polling=100,
     )

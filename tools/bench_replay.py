@@ -14,29 +14,18 @@ from __future__ import annotations
 
 import argparse
 import re
-import shutil
 import statistics
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
 
+from bwr_twin.replay.headless import RENDERED_TRIANGLES, chromium_context, find_chromium
+
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_SCENE = ROOT / "scenes" / "paper_individual_gains.toml"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--enable-unsafe-swiftshader",
-]
 TIMEOUT = 60.0  # s, per stage
-RENDERED_TRIANGLES = "() => window.__viserTestpoints?.rendererInfo?.render?.triangles ?? 0"
 
 
 def machine_triangles(source: Path) -> int:
@@ -102,23 +91,14 @@ def main() -> int:
     parser.add_argument("--cached", action="store_true", help="let the replay use (and fill) its run cache")
     parser.add_argument("--runs", type=int, default=3, help="launches to time (default: 3)")
     args = parser.parse_args()
-    chromium = shutil.which("chromium")
+    chromium = find_chromium()
     if chromium is None:
         print("error: no chromium on PATH (apt-get install chromium)", file=sys.stderr)
         return 2
 
-    from playwright.sync_api import sync_playwright
-
     triangles = machine_triangles(args.source)
     shown, ready = [], []
-    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
-        browser = playwright.chromium.launch_persistent_context(
-            profile,
-            executable_path=chromium,
-            headless=True,
-            args=CHROMIUM_ARGS,
-            viewport={"width": 1280, "height": 800},
-        )
+    with chromium_context(chromium) as browser:
         for run in range(args.runs):
             page = browser.new_page()
             seconds, timeline = measure(page, args.source, args.cached, triangles)
@@ -130,7 +110,6 @@ def main() -> int:
                 f"run {run + 1}: machine on screen after {seconds:.2f} s, timeline ready after "
                 + (f"{timeline:.2f} s" if timeline is not None else "(not within the time limit)")
             )
-        browser.close()
     kind = "cached run" if args.cached else "simulation included"
     print(
         f"command to a page showing the machine: median {statistics.median(shown):.2f} s, "
