@@ -18,6 +18,29 @@ PAPER_VIA_POINTS = [
     (700.0, (0.0, -11.0, 55.0)),
 ]
 
+# The first 20 s of a reclaim towards the paper's p_int1: the paper scene in seconds, not minutes.
+SHORT_VIA_POINTS = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
+
+
+def path_table(via_points) -> str:
+    """A scene file's [path] table for via points in the paper's frame."""
+    rows = "".join(f"  {{ t = {v['t']:.1f}, p = [{', '.join(f'{x:.1f}' for x in v['p'])}] }},\n" for v in via_points)
+    return f'[path]\nframe = "paper"\nvia_points = [\n{rows}]\n'
+
+
+def write_short_scene(folder: Path, via_points=SHORT_VIA_POINTS, edit=None) -> Path:
+    """folder/short.toml: the individual-gains scene over `via_points`, its file paths absolute,
+    its text passed through `edit` if given."""
+    text = (SCENES / "paper_individual_gains.toml").read_text()
+    start, end = text.index("[path]"), text.index("[simulation]")
+    text = text[:start] + path_table(via_points) + "\n" + text[end:]
+    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
+    if edit:
+        text = edit(text)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "short.toml").write_text(text)
+    return folder / "short.toml"
+
 
 @pytest.fixture(scope="session")
 def paper_machine():

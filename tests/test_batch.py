@@ -13,22 +13,15 @@ import sys
 import time
 
 import pytest
-from conftest import PAPER_MJCF, ROOT, SCENES, VARIANT_MJCF
+from conftest import PAPER_MJCF, ROOT, SHORT_VIA_POINTS, VARIANT_MJCF, write_short_scene
 
 from bwr_twin.batch import BatchLock
 from bwr_twin.errors import SceneError
 from bwr_twin.machine import AXES
 from bwr_twin.sweep import load_sweep
 
-SHORT_PATH = """[path]
-frame = "paper"
-via_points = [
-  { t = 0.0, p = [0.0, -11.0, 55.0] },
-  { t = 20.0, p = [-3.0, -11.0, 54.0] },
-]
-"""
 # Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
-FAR_PATH = SHORT_PATH.replace("54.0] },\n]", "54.0] },\n  { t = 40.0, p = [-55.0, -11.0, 2.0] },\n]")
+FAR_VIA_POINTS = [*SHORT_VIA_POINTS, {"t": 40.0, "p": [-55.0, -11.0, 2.0]}]
 SHORT_SWEEP = """scene = "short.toml"
 seeds = 2
 [vary]
@@ -42,19 +35,8 @@ RUN_FILES = {"metrics.json", "timeseries.csv", "scene.json", "positions.png", "v
              "errors_acceleration.png", "drive_forces.png", "cp_path.png"}
 
 
-def base_scene(folder, path_table=SHORT_PATH):
-    """The individual-gains scene over a short path, with absolute file paths, in `folder`."""
-    text = (SCENES / "paper_individual_gains.toml").read_text()
-    start, end = text.index("[path]"), text.index("[simulation]")
-    text = text[:start] + path_table + "\n" + text[end:]
-    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "short.toml").write_text(text)
-    return folder / "short.toml"
-
-
-def write_sweep(folder, text, path_table=SHORT_PATH):
-    base_scene(folder, path_table)
+def write_sweep(folder, text, via_points=SHORT_VIA_POINTS):
+    write_short_scene(folder, via_points)
     (folder / "sweep.toml").write_text(text)
     return folder / "sweep.toml"
 
@@ -264,7 +246,7 @@ def test_ctrl_c_stops_promptly_and_keeps_only_complete_runs(short_batch, tmp_pat
 
 
 def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
-    sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{VARIANT_MJCF}"]\n', FAR_PATH)
+    sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{VARIANT_MJCF}"]\n', FAR_VIA_POINTS)
     out = tmp_path / "out"
     proc = batch_cli(sweep, "--out", out, "--no-plots")
     assert proc.returncode == 1, proc.stderr

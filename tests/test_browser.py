@@ -13,7 +13,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from conftest import ROOT, SCENES
+from conftest import ROOT, SCENES, SHORT_VIA_POINTS
 
 from bwr_twin.replay import Recording, ReplayServer, export_html
 from bwr_twin.replay.geometry import visual_geoms
@@ -24,7 +24,6 @@ pytestmark = pytest.mark.browser
 ARTIFACTS = ROOT / "test-artifacts"
 WAIT_MS = 90_000  # software WebGL on a busy 2-core machine
 MACHINE_SHARE = 1e-3  # of the screenshot's pixels in the machine's colour: it is on the canvas
-SHORT_PATH = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
 
 
 def _unavailable(reason: str):
@@ -54,7 +53,7 @@ def recording(tmp_path_factory):
 
     run_dir = tmp_path_factory.mktemp("browser") / "short"
     write_run(
-        simulate(load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_PATH})),
+        simulate(load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})),
         run_dir,
         plots=False,
     )

@@ -12,7 +12,7 @@ import urllib.request
 import mujoco
 import numpy as np
 import pytest
-from conftest import PAPER_MJCF, ROOT, SCENES, VARIANT_MJCF
+from conftest import PAPER_MJCF, ROOT, SCENES, SHORT_VIA_POINTS, VARIANT_MJCF
 
 from bwr_twin import Machine
 from bwr_twin.machine import paper_to_world
@@ -26,7 +26,6 @@ HEAVY_MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 MACHINES = pytest.mark.parametrize(
     "mjcf", [PAPER_MJCF, VARIANT_MJCF, HEAVY_MJCF], ids=["paper", "variant", "heavy"]
 )
-SHORT_PATH = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
 EXPORT_LIMIT = 5_000_000  # bytes: the offline recording must stay under 5 MB
 
 
@@ -34,7 +33,7 @@ EXPORT_LIMIT = 5_000_000  # bytes: the offline recording must stay under 5 MB
 def short_scene():
     from bwr_twin.scene import load_scene
 
-    return load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_PATH})
+    return load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})
 
 
 @pytest.fixture(scope="session")
@@ -222,7 +221,7 @@ def test_run_directory_and_result_give_the_same_recording(short_run, short_recor
     ):
         assert np.allclose(a, b, rtol=1e-9, atol=1e-12)
     assert short_recording.plan.time[-1] == pytest.approx(20.0) and len(short_recording.plan.time) == 201
-    assert np.allclose(short_recording.plan.via_points[1], paper_to_world(np.array(SHORT_PATH[1]["p"])))
+    assert np.allclose(short_recording.plan.via_points[1], paper_to_world(np.array(SHORT_VIA_POINTS[1]["p"])))
 
 
 def test_plan_from_scene_matches_the_run(short_scene, short_recording):
@@ -270,9 +269,9 @@ def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, shor
 def test_cache_key_follows_what_decides_the_run(short_scene):
     from bwr_twin.scene import load_scene
 
-    same = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_PATH})
+    same = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})
     reseeded = load_scene(
-        SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_PATH, "simulation.seed": 2}
+        SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS, "simulation.seed": 2}
     )
     assert cache_key(same) == cache_key(short_scene) != cache_key(reseeded)
 

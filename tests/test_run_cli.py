@@ -10,38 +10,16 @@ import pytest
 
 from bwr_twin.machine import AXES
 from bwr_twin.results import read_timeseries
-from conftest import ROOT, SCENES
+from conftest import ROOT, write_short_scene
 
 CONTRACT_KEYS = {"position_error_max", "position_error_max_time", "velocity_error_max", "acceleration_error_max", "position_error_rms"}
-SHORT_PATH = """[path]
-frame = "paper"
-via_points = [
-  { t = 0.0, p = [0.0, -11.0, 55.0] },
-  { t = 20.0, p = [-3.0, -11.0, 54.0] },
-]
-"""
-
-
-def short_scene(tmp_path, extra_edit=None):
-    """The individual-gains scene over a 20 s path, written next to the tests' tmp files."""
-    text = (SCENES / "paper_individual_gains.toml").read_text()
-    start, end = text.index("[path]"), text.index("[simulation]")
-    text = text[:start] + SHORT_PATH + "\n" + text[end:]
-    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
-    if extra_edit:
-        text = extra_edit(text)
-    path = tmp_path / "short.toml"
-    path.write_text(text)
-    return path
-
-
 def run_cli(*args, cwd=ROOT):
     return subprocess.run([sys.executable, "-m", "bwr_twin.run", *map(str, args)], capture_output=True, text=True, cwd=cwd)
 
 
 def test_run_writes_contract_results(tmp_path):
     out = tmp_path / "run"
-    proc = run_cli(short_scene(tmp_path), "--out", out)
+    proc = run_cli(write_short_scene(tmp_path), "--out", out)
     assert proc.returncode == 0, proc.stderr
     assert "position error max" in proc.stdout and "travel" in proc.stdout
     metrics = json.loads((out / "metrics.json").read_text())
@@ -61,7 +39,7 @@ def test_run_writes_contract_results(tmp_path):
 
 
 def test_same_scene_and_seed_give_identical_results(tmp_path):
-    scene = short_scene(tmp_path)
+    scene = write_short_scene(tmp_path)
     for name in ("a", "b"):
         assert run_cli(scene, "--out", tmp_path / name, "--seed", 5, "--no-plots").returncode == 0
     assert (tmp_path / "a" / "timeseries.csv").read_bytes() == (tmp_path / "b" / "timeseries.csv").read_bytes()
@@ -70,7 +48,7 @@ def test_same_scene_and_seed_give_identical_results(tmp_path):
 
 
 def test_model_option_swaps_the_machine(tmp_path):
-    proc = run_cli(short_scene(tmp_path), "--out", tmp_path / "variant", "--model", ROOT / "tests/assets/bwr_variant.xml", "--no-plots")
+    proc = run_cli(write_short_scene(tmp_path), "--out", tmp_path / "variant", "--model", ROOT / "tests/assets/bwr_variant.xml", "--no-plots")
     # The paper's path starts 55 m out along the rail; the variant reaches it, inside its envelope or not.
     assert proc.returncode in (0, 2), proc.stderr
     if proc.returncode == 2:
@@ -97,7 +75,7 @@ def test_bad_input_exits_with_one_line_and_writes_nothing(tmp_path, edit, messag
     import re
 
     out = tmp_path / "out"
-    proc = run_cli(short_scene(tmp_path, edit), "--out", out)
+    proc = run_cli(write_short_scene(tmp_path, edit=edit), "--out", out)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
@@ -111,7 +89,7 @@ def test_existing_output_is_left_untouched(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("earlier results")
-    proc = run_cli(short_scene(tmp_path), "--out", out)
+    proc = run_cli(write_short_scene(tmp_path), "--out", out)
     assert proc.returncode == 2 and "already exists" in proc.stderr
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
 
