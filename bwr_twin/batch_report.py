@@ -11,11 +11,12 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from bwr_twin.machine import AXES, UNITS, to_display
+from bwr_twin.scene import is_number
 from bwr_twin.sweep import PlannedRun, Sweep, parameter_label
 
 SUMMARY_FILE = "summary.csv"
@@ -69,14 +70,11 @@ def _flat_metrics(metrics: dict) -> dict[str, float]:
     flat = {}
     for name, value in metrics.items():
         if name in AXES:
-            flat.update({f"{name}.{key}": v for key, v in value.items() if _is_number(v)})
-        elif _is_number(value):
+            flat.update({f"{name}.{key}": v for key, v in value.items() if is_number(v)})
+        elif is_number(value):
             flat[name] = value
     return flat
 
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def write_plots(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> list[Path]:
@@ -84,9 +82,6 @@ def write_plots(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> l
     done = [run for run in sweep.runs if records[run.run_id].status == "ok"]
     if not done:
         return []
-    import matplotlib
-
-    matplotlib.use("Agg")  # files only; no display needed
     folder = out_dir / PLOTS_DIR
     folder.mkdir(exist_ok=True)  # its files appear atomically, one by one
     paths = [_distribution_plot(folder / "error_distributions.png", sweep, done, records)]
@@ -109,13 +104,14 @@ def _magnitude(record: RunRecord, axis: int, key: str) -> float:
 def _distribution_plot(path: Path, sweep: Sweep, done: list[PlannedRun],
                        records: dict[str, RunRecord]) -> Path:
     """One box per setting of the varied keys, over its seeds; every run also as a dot."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global state, no display backend
 
     groups: dict[str, list[PlannedRun]] = {}
     for run in done:
         groups.setdefault(", ".join(run.value_labels.values()) or f"{len(done)} runs", []).append(run)
     width = min(24.0, 10.0 + 0.4 * len(groups))  # in: many settings need room for their labels
-    fig, axes = plt.subplots(3, 3, figsize=(width, 9), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(width, 9), layout="constrained")
+    axes = fig.subplots(3, 3, sharex=True)
     for j in range(len(AXES)):
         for column, (quantity, key, per) in enumerate(_QUANTITIES):
             ax = axes[j, column]
@@ -132,20 +128,20 @@ def _distribution_plot(path: Path, sweep: Sweep, done: list[PlannedRun],
         ax.set_xlabel(", ".join(parameter_label(key) for key in sweep.keys) or "seeds")
     fig.suptitle(f"{sweep.path.stem}: largest errors of {len(done)} runs (box: quartiles, whiskers: 1.5 IQR)")
     write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
     return path
 
 
 def _heat_map(path: Path, sweep: Sweep, grid: tuple[str, str], done: list[PlannedRun],
               records: dict[str, RunRecord]) -> Path:
     """|position error max| per axis over the grid, the median over seeds in each cell."""
-    import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.figure import Figure
 
     x_key, y_key = grid
     xs = sorted({run.parameters[x_key] for run in sweep.runs})
     ys = sorted({run.parameters[y_key] for run in sweep.runs})
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5), constrained_layout=True)
+    fig = Figure(figsize=(17, 5), layout="constrained")
+    axes = fig.subplots(1, 3)
     for j, ax in enumerate(axes):
         cells: dict[tuple[int, int], list[float]] = {}
         for run in done:
@@ -171,7 +167,6 @@ def _heat_map(path: Path, sweep: Sweep, grid: tuple[str, str], done: list[Planne
         fig.colorbar(mesh, ax=ax, label=f"{AXES[j]} [{UNITS[j]}], median over seeds")
     fig.suptitle(f"{sweep.path.stem}: largest position error over the grid (grey: no successful run)")
     write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
     return path
 
 

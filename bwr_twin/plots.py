@@ -7,21 +7,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure  # no pyplot: no global state, no display backend
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from bwr_twin.machine import AXES, UNITS, world_to_paper  # noqa: E402
-from bwr_twin.simulate import RunResult  # noqa: E402
+from bwr_twin.machine import AXES, UNITS, world_to_paper
+from bwr_twin.simulate import RunResult
 
 _DEG = (1.0, 180 / np.pi, 180 / np.pi)
 
 
 def _per_axis(result: RunResult, title: str, series, unit_suffix: str, path: Path) -> None:
     """One row per axis; `series` is [(label, array (n, 3), style), ...]."""
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(10, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     for j, ax in enumerate(axes):
         for label, values, style in series:
             ax.plot(result.time, values[:, j] * _DEG[j], style, label=label, lw=1.0)
@@ -33,7 +31,6 @@ def _per_axis(result: RunResult, title: str, series, unit_suffix: str, path: Pat
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
@@ -63,7 +60,8 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
          [("error", result.qdd_desired - result.qdd, "C3-")], "/s²")
 
     # Fig. 9: the FLC output itself (dimensionless) and the acceleration command it makes.
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(10, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     for j, ax in enumerate(axes):
         ax.plot(result.time, result.fuzzy_output[:, j], "C1-", lw=0.6, label="FLC output")
         ax.set_ylabel(f"{AXES[j]} FLC [-]")
@@ -74,12 +72,12 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     fig.suptitle(f"Fuzzy logic output signals (paper Fig. 9)\n{subtitle}")
     paths.append(out_dir / "fuzzy_outputs.png")
     fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
 
     # Drive forces against their limits.
     limits = result.machine.drive_limits
     force_units = ("kN", "kN m", "kN m")
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(10, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     for j, ax in enumerate(axes):
         ax.plot(result.time, result.drive_force_command[:, j] / 1e3, "C7-", lw=0.6, label="commanded")
         ax.plot(result.time, result.drive_force[:, j] / 1e3, "C0-", lw=0.8, label="applied")
@@ -94,12 +92,12 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     fig.suptitle(f"Drive forces and torques against their limits\n{subtitle}")
     paths.append(out_dir / "drive_forces.png")
     fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
 
     # The CP path in the paper's frame 0: plan view and elevation.
     desired, actual = world_to_paper(result.cp_desired), world_to_paper(result.cp)
     via = world_to_paper(result.trajectory.points)
-    fig, (top, side) = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    fig = Figure(figsize=(12, 5), layout="constrained")
+    (top, side) = fig.subplots(1, 2)
     for ax, (a, b), labels in (
         (top, (2, 0), ("z_p, along the rail [m]", "x_p, lateral [m]")),
         (side, (2, 1), ("z_p, along the rail [m]", "y_p, down [m]")),
@@ -118,5 +116,4 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     fig.suptitle(f"Bucket wheel centre path in the paper's frame 0\n{subtitle}")
     paths.append(out_dir / "cp_path.png")
     fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
     return paths

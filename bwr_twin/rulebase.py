@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from bwr_twin.errors import SceneError
+from bwr_twin.scene import is_number
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -174,7 +175,7 @@ def _parse(path: Path, data: dict[str, Any]) -> RuleBase:
         if name not in universe:
             raise SceneError(f"{path}: missing key '{key}'")
         value = universe[name]
-        if not (isinstance(value, list) and len(value) == 2 and all(_is_number(v) for v in value)):
+        if not (isinstance(value, list) and len(value) == 2 and all(is_number(v) for v in value)):
             raise fail(key, f"must be [low, high], two numbers, got {value!r}")
         low, high = float(value[0]), float(value[1])
         if not (math.isfinite(low) and math.isfinite(high)):
@@ -220,9 +221,6 @@ def _parse(path: Path, data: dict[str, Any]) -> RuleBase:
         path=path,
     )
 
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _type(value: Any) -> str:

@@ -264,11 +264,11 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
             raise SceneError(f"{path}: '{key}' must hold {len(args)} values (travel, slew, luff), got {len(value)}")
         return tuple(_convert(a, v, path, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if hint is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if not is_number(value):
             raise SceneError(f"{path}: '{key}' must be a number, got {value!r}")
         return float(value)
     if hint is int:
-        if isinstance(value, bool) or not isinstance(value, int):
+        if not is_integer(value):
             raise SceneError(f"{path}: '{key}' must be an integer, got {value!r}")
         return value
     if hint is bool:
@@ -349,3 +349,12 @@ def _plain(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def is_number(value: Any) -> bool:
+    """A TOML (or JSON) integer or float; Python's bool is an int, but true is not a number."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_integer(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)

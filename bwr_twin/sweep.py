@@ -37,7 +37,7 @@ import numpy as np
 
 from bwr_twin.errors import SceneError
 from bwr_twin.machine import AXES
-from bwr_twin.scene import PATH_KEYS, Scene, load_scene
+from bwr_twin.scene import PATH_KEYS, Scene, is_integer, is_number, load_scene
 
 _TOP_LEVEL_KEYS = ("scene", "seeds", "vary")
 _RANGE_KEYS = ("start", "stop", "num", "step")
@@ -72,7 +72,7 @@ class Sweep:
         """The two keys of a 2-D grid of numbers (for a heat map), if that is what this sweep is."""
         if len(self.keys) != 2:
             return None
-        numeric = all(_is_number(run.parameters[key]) for run in self.runs for key in self.keys)
+        numeric = all(is_number(run.parameters[key]) for run in self.runs for key in self.keys)
         return (self.keys[0], self.keys[1]) if numeric else None
 
 
@@ -178,7 +178,7 @@ def _range(spec: dict[str, Any], path: Path, key: str) -> list[float]:
     for bound in ("start", "stop"):
         if bound not in spec:
             raise SceneError(f"{path}: range '{key}' needs '{bound}'")
-        if not _is_number(spec[bound]):
+        if not is_number(spec[bound]):
             raise SceneError(f"{path}: '{key}.{bound}' must be a number, got {spec[bound]!r}")
     if ("num" in spec) == ("step" in spec):
         raise SceneError(f"{path}: range '{key}' needs exactly one of 'num' and 'step'")
@@ -190,7 +190,7 @@ def _range(spec: dict[str, Any], path: Path, key: str) -> list[float]:
         values = np.linspace(start, stop, num)
     else:
         step = spec["step"]
-        if not _is_number(step) or not step > 0:
+        if not is_number(step) or not step > 0:
             raise SceneError(f"{path}: '{key}.step' must be a number > 0, got {step!r}")
         if stop < start:
             raise SceneError(f"{path}: range '{key}' with a step needs stop >= start, got {start} > {stop}")
@@ -200,9 +200,9 @@ def _range(spec: dict[str, Any], path: Path, key: str) -> list[float]:
 
 
 def _seeds(value: Any, path: Path) -> list[int]:
-    if _is_integer(value) and value >= 1:
+    if is_integer(value) and value >= 1:
         return list(range(1, value + 1))
-    if isinstance(value, list) and value and all(_is_integer(v) and v >= 0 for v in value):
+    if isinstance(value, list) and value and all(is_integer(v) and v >= 0 for v in value):
         return _checked_list(value, path, "seeds")
     raise SceneError(f"{path}: 'seeds' must be a count (an integer >= 1) or a list of integers >= 0, "
                      f"got {value!r}")
@@ -253,7 +253,7 @@ def _run_id(index: int, width: int, labels: dict[str, str], seed: int) -> str:
 
 def _value_text(value: Any, values: list) -> str:
     """Numbers as numbers, files by their name, per-axis lists joined; anything else by its position."""
-    if _is_number(value):
+    if is_number(value):
         return f"{value:g}"
     if isinstance(value, str):
         return Path(value).stem
@@ -263,12 +263,6 @@ def _value_text(value: Any, values: list) -> str:
 
 
 def _is_vector(value: Any) -> bool:
-    return isinstance(value, list) and len(value) == len(AXES) and all(_is_number(v) for v in value)
+    return isinstance(value, list) and len(value) == len(AXES) and all(is_number(v) for v in value)
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _is_integer(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
