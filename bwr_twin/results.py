@@ -121,7 +121,7 @@ def compute_metrics(result: RunResult) -> dict:
 
 def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
     """Column names (with units) and values of the recorded time series, at the record period."""
-    every = max(1, int(round(result.scene.simulation.record_period / result.scene.simulation.control_period)))
+    every = max(1, round(result.scene.simulation.record_period / result.scene.simulation.control_period))
     rows = np.arange(0, len(result.time), every)
     if rows[-1] != len(result.time) - 1:
         rows = np.append(rows, len(result.time) - 1)  # always keep the last sample
@@ -156,19 +156,18 @@ def summary_table(metrics: dict) -> str:
     ]
     for j, axis in enumerate(AXES):
         m = metrics[axis]
-        unit = UNITS[j]
-
-        def cell(value, time, per):
-            return f"{to_display(j, value):+.4g} {unit}{per} @ {time:5.1f} s"
-
         lines.append(
-            f"{axis:<7} {cell(m['position_error_max'], m['position_error_max_time'], ''):>24} "
-            f"{cell(m['velocity_error_max'], m['velocity_error_max_time'], '/s'):>26} "
-            f"{cell(m['acceleration_error_max'], m['acceleration_error_max_time'], '/s^2'):>30} "
-            f"{to_display(j, m['position_error_rms']):>9.4g} {unit}"
+            f"{axis:<7} {_largest(m, j, 'position', ''):>24} {_largest(m, j, 'velocity', '/s'):>26} "
+            f"{_largest(m, j, 'acceleration', '/s^2'):>30} {to_display(j, m['position_error_rms']):>9.4g} {UNITS[j]}"
         )
     lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
     return "\n".join(lines)
+
+
+def _largest(axis_metrics: dict, j: int, kind: str, per: str) -> str:
+    """'+0.01812 m @ 204.1 s': the largest error of one kind, in engineering units, and its time."""
+    value, time = axis_metrics[f"{kind}_error_max"], axis_metrics[f"{kind}_error_max_time"]
+    return f"{to_display(j, value):+.4g} {UNITS[j]}{per} @ {time:5.1f} s"
 
 
 def _umask() -> int:

@@ -77,7 +77,7 @@ def simulate(scene: Scene, *, progress: bool = False) -> RunResult:
     plant = Plant(machine, scene, q0=trajectory.knots[0])
 
     period = scene.simulation.control_period
-    n = int(round(trajectory.duration / period)) + 1
+    n = round(trajectory.duration / period) + 1
     time = trajectory.times[0] + np.arange(n) * period
     q_desired, qd_desired, qdd_desired = trajectory.sample(time)
     # Independent streams, so that turning gusts on leaves the disturbance sequence unchanged.
