@@ -207,6 +207,19 @@ def test_stockpile_lies_under_the_reclaimed_via_points(paper_machine):
     assert stockpile(points * (1, 0, 1), rail_y=0.0) is None  # a path along the rail digs nothing
 
 
+def test_close_via_points_share_one_label_and_each_is_named_once(paper_machine):
+    from conftest import PAPER_VIA_POINTS
+
+    from bwr_twin.replay.view import label_groups
+
+    paper = paper_to_world(np.array([p for _, p in PAPER_VIA_POINTS]))
+    assert label_groups(paper, 1.0) == {0: [0, 4], 1: [1], 2: [2], 3: [3]}  # the path ends where it began
+    chain = np.array([[0.0, 0, 0], [0.8, 0, 0], [1.6, 0, 0], [9.0, 0, 0]])  # 0-1 and 1-2 close, 0-2 not
+    groups = label_groups(chain, 1.0)
+    assert groups == {0: [0, 1], 2: [2], 3: [3]}
+    assert sorted(i for members in groups.values() for i in members) == [0, 1, 2, 3]
+
+
 # -- recordings, readout, charts --------------------------------------------------------------
 
 

@@ -25,6 +25,7 @@ PATH_STEP = 1.0  # s between drawn points of the desired path and of the trail
 TRAIL_CHUNK = 20  # trail segments per scene node; only the unfinished chunk is re-sent
 LINE_WIDTH = 2.5  # px, desired path; the trail is twice as wide
 MARKER_SCALE = 0.01  # marker radius as a share of the path's extent
+LABEL_MERGE = 4.0  # via points closer than this many marker radii share one label
 
 
 def rgb(rgba: tuple[float, ...]) -> tuple[int, int, int]:
@@ -36,6 +37,17 @@ def _segments(points: np.ndarray) -> np.ndarray:
     if len(points) == 1:
         points = np.repeat(points, 2, axis=0)
     return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
+
+
+def label_groups(points: np.ndarray, distance: float) -> dict[int, list[int]]:
+    """Via points that share a label, as {first point: every point labelled there}: each point
+    joins the label of the first earlier point within `distance`, so every point is named once,
+    and a path's coinciding ends or a bench's close via points do not print over each other."""
+    groups: dict[int, list[int]] = {}
+    for i, p in enumerate(points):
+        near = [first for first in groups if np.linalg.norm(points[first] - p) < distance]
+        groups.setdefault(near[0] if near else i, []).append(i)
+    return groups
 
 
 class SceneView:
@@ -72,9 +84,10 @@ class SceneView:
         of the window that a GUI panel covering `panel_share` of its width on the right leaves)."""
         plan, scene = self.plan, self.server.scene
         pile = stockpile(plan.via_points, rail_y=plan.machine.geometry.slew_axis_xy[1])
+        moving = {name for name, moves in zip(self.poser.names, self.poser.moving) if moves}
+        machine = [geom for geom in self.geoms if geom.body in moving]  # not the rail: it may run far on
         extent = [plan.cp_desired] + [
-            self.poser.world_vertices(self.geoms, q)
-            for q in (plan.q_desired[0], plan.q_desired[len(plan.time) // 2])
+            self.poser.world_vertices(machine, q) for q in (plan.q_desired[0], plan.q_desired[len(plan.time) // 2])
         ]
         if pile is not None:
             scene.add_mesh_simple("/pile", pile.vertices, pile.faces, color=ORE_COLOUR, flat_shading=True)
@@ -111,16 +124,15 @@ class SceneView:
             "/path/desired", _segments(path), DESIRED_COLOUR, thickness=LINE_WIDTH, thickness_units="screen"
         )
         names = [f"P{i + 1}" for i in range(len(plan.via_times))]
-        for i, (name, p) in enumerate(zip(names, plan.via_points)):
+        for name, p in zip(names, plan.via_points):
             scene.add_icosphere(f"/via/{name}", radius=self.marker_radius, color=VIA_COLOUR, position=p)
-            same_place = np.flatnonzero(np.linalg.norm(plan.via_points - p, axis=1) < self.marker_radius)
-            if same_place[0] == i:  # one label for via points that coincide, as a path's ends often do
-                scene.add_label(
-                    f"/via/{name}/label",
-                    "\n".join(f"{names[k]}  t = {plan.via_times[k]:g} s" for k in same_place),
-                    position=(0.0, 0.0, 2.0 * self.marker_radius),
-                    anchor="bottom-center",
-                )
+        for first, members in label_groups(plan.via_points, LABEL_MERGE * self.marker_radius).items():
+            scene.add_label(
+                f"/via/{names[first]}/label",
+                "\n".join(f"{names[k]}  t = {plan.via_times[k]:g} s" for k in members),
+                position=(0.0, 0.0, 2.0 * self.marker_radius),
+                anchor="bottom-center",
+            )
         self.target = scene.add_icosphere(
             "/target", radius=1.5 * self.marker_radius, color=TARGET_COLOUR, position=plan.cp_desired[0]
         )
