@@ -11,8 +11,10 @@ exits with status 2 and a one-line message; nothing is written.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from bwr_twin.errors import BwrError
@@ -26,6 +28,27 @@ def scene_overrides(model: str | None = None, seed: int | None = None) -> dict:
     if seed is not None:
         overrides["simulation.seed"] = seed
     return overrides
+
+
+@contextlib.contextmanager
+def simulation_progress_bar() -> Iterator[Callable[[float, float], None]]:
+    """A `simulate` progress callback that draws a bar of simulated seconds on a terminal."""
+    from tqdm import tqdm
+
+    bar = None
+
+    def advance(done: float, total: float) -> None:
+        nonlocal bar
+        if bar is None:  # the path's duration is known once the simulation reports
+            bar = tqdm(total=round(total), desc="simulating", unit="s", leave=False,
+                       disable=not sys.stderr.isatty())
+        bar.update(round(done) - bar.n)
+
+    try:
+        yield advance
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.out.exists() and not args.overwrite:
             raise BwrError(f"{args.out}: already exists; choose another --out or pass --overwrite")
         started = time.perf_counter()
-        result = simulate(scene, progress=sys.stderr.isatty())
+        with simulation_progress_bar() as progress:
+            result = simulate(scene, progress=progress)
         simulated = time.perf_counter() - started
         metrics = write_run(result, args.out, overwrite=args.overwrite, plots=not args.no_plots)
     except BwrError as exc:

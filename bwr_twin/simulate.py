@@ -7,6 +7,7 @@ signals go into preallocated arrays, disturbances are drawn up front from the sc
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,8 +65,12 @@ def held_random(rng: np.random.Generator, amplitude, n_samples: int, period: flo
     return draws[hold_index] * amplitude
 
 
-def simulate(scene: Scene, *, progress: bool = False) -> RunResult:
-    """Run the scene's reclaim headless. Raises BwrError subclasses on bad input or divergence."""
+def simulate(scene: Scene, *, progress: Callable[[float, float], None] | None = None) -> RunResult:
+    """Run the scene's reclaim headless. Raises BwrError subclasses on bad input or divergence.
+
+    `progress(done, total)`, if given, hears how many of the path's seconds are simulated, about
+    once a simulated second.
+    """
     machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
     belief = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
     try:
@@ -89,7 +94,6 @@ def simulate(scene: Scene, *, progress: bool = False) -> RunResult:
     q, qd, q_measured, qd_measured, fuzzy, command, force_command, force = (np.zeros((n, 3)) for _ in range(8))
     data = plant.data
     plant.set_wind_gust(gust[0])
-    bar = _progress_bar(n, trajectory.duration) if progress else None
     with mujoco_warnings() as warnings:
         try:
             for k in range(n):
@@ -109,14 +113,11 @@ def simulate(scene: Scene, *, progress: bool = False) -> RunResult:
                 force[k] = data.qfrc_actuator
                 if k % HEALTH_CHECK_EVERY == HEALTH_CHECK_EVERY - 1:
                     plant.check_health(warnings)
-                    if bar is not None:
-                        bar.update(HEALTH_CHECK_EVERY)
+                    if progress is not None:
+                        progress((k + 1) * period, trajectory.duration)
             plant.check_health(warnings)
         except SimulationError as exc:
             raise _in_scene(scene, exc) from None
-        finally:
-            if bar is not None:
-                bar.close()
     qdd = np.empty_like(qd)
     qdd[:-1] = np.diff(qd, axis=0) / period
     qdd[-1] = (data.qvel - qd[-1]) / period
@@ -146,8 +147,3 @@ def _in_scene(scene: Scene, exc: BwrError) -> BwrError:
     """The same error, naming the scene file it came from."""
     return type(exc)(f"{scene.path}: {exc}")
 
-
-def _progress_bar(n: int, duration: float):
-    from tqdm import tqdm
-
-    return tqdm(total=n, desc=f"simulating {duration:g} s", unit="period", unit_scale=True, leave=False)
