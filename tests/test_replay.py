@@ -412,6 +412,27 @@ def test_cli_bad_input_exits_2_with_one_line(args, message):
     assert message in err.strip().splitlines()[-1]
 
 
+def test_a_scene_is_simulated_in_a_child_process_that_reports_its_progress(short_scene, short_recording):
+    from bwr_twin.replay.simulation import simulate_in_child
+
+    shares = []
+    recording = simulate_in_child(short_scene, use_cache=False, progress=shares.append)
+    assert len(shares) >= 10 and shares == sorted(shares) and 0 < shares[0] and shares[-1] == pytest.approx(1.0)
+    assert np.array_equal(recording.q_actual, short_recording.q_actual)  # same scene and seed, same run
+
+
+def test_a_diverging_simulation_in_the_child_is_a_one_line_error(tmp_path):
+    from conftest import write_short_scene
+
+    scene = write_short_scene(tmp_path, edit=lambda t: t.replace("[0.01, 0.04, 0.06]", "[1e12, 1e12, 1e12]"))
+    out = tmp_path / "replay.html"
+    proc = _start_cli(scene, "--no-cache", "--export", out)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2 and "Traceback" not in err, err
+    assert err.strip().splitlines() == [err.strip()] and "short.toml" in err and "diverged" in err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]
+
+
 def test_export_is_self_contained_and_small(short_recording, tmp_path):
     out = tmp_path / "short.html"
     size = export_html(short_recording, out)

@@ -6,21 +6,18 @@
     python -m bwr_twin.replay [...] --export FILE.html   # write an offline recording and exit
 
 Serves http://127.0.0.1:8080 until Ctrl-C (--host to listen elsewhere, --port 0 for any free
-port; a busy port is replaced by the next free one). A scene is simulated by `bwr_twin.run` in
-a child process at lower CPU priority while the page already shows the machine and its path;
-the run is cached in out/replay-cache/, so the next replay of the same scene, models and code
-starts with its timeline. Bad input exits with status 2 and a one-line message.
+port; a busy port is replaced by the next free one). A scene is simulated in a child process at
+lower CPU priority while the page already shows the machine, its path and the simulation's
+progress; the run is cached in out/replay-cache/ as a run directory of `bwr_twin.run`, so the
+next replay of the same scene, models and code starts with its timeline. Bad input exits with
+status 2 and a one-line message.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import signal
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,16 +29,6 @@ if TYPE_CHECKING:
     from bwr_twin.scene import Scene
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "paper_individual_gains.toml"
-CACHE_ROOT = Path("out") / "replay-cache"
-SIMULATION_NICENESS = 10  # the page is drawn first; the simulation takes the CPU that is left
-
-
-class SimulationFailed(Exception):
-    """The simulating child process failed; it has printed its own one-line error."""
-
-    def __init__(self, status: int):
-        super().__init__(status)
-        self.status = status
 
 
 def _port(text: str) -> int:
@@ -78,11 +65,13 @@ def main(argv: list[str] | None = None) -> int:
 
     server = None
     try:
+        from bwr_twin.replay.simulation import simulate_in_child
+
         recording, scene = _open(args.source, use_cache=not args.no_cache)
         if args.export is not None:
             from bwr_twin.replay.export import export_html
 
-            recording = recording or _simulate(scene, use_cache=not args.no_cache)
+            recording = recording or simulate_in_child(scene, use_cache=not args.no_cache)
             size = export_html(recording, args.export)
             duration = recording.plan.duration
             print(f"wrote {args.export} ({size / 1e6:.1f} MB): the {duration:g} s reclaim, offline")
@@ -96,15 +85,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"port {args.port} is busy; using {server.port}")
         print(f"replay at {server.url}  (Ctrl-C to stop)", flush=True)
         if recording is None:
-            server.load(_simulate(scene, use_cache=not args.no_cache))
+            server.load(simulate_in_child(scene, use_cache=not args.no_cache, progress=server.show_progress))
             print("simulation done: the timeline is ready", flush=True)
         while True:
             time.sleep(3600)
     except BwrError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except SimulationFailed as exc:
-        return exc.status
     except KeyboardInterrupt:
         return 0
     finally:
@@ -114,7 +101,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _open(source: Path, *, use_cache: bool) -> tuple[Recording | None, Scene | None]:
     """(recording, None) for a run directory or a cached scene run, else (None, scene)."""
-    from bwr_twin.replay.recording import Recording, cache_key
+    from bwr_twin.replay.recording import Recording
+    from bwr_twin.replay.simulation import cached_run
     from bwr_twin.scene import load_scene
 
     if source.is_dir():
@@ -122,43 +110,10 @@ def _open(source: Path, *, use_cache: bool) -> tuple[Recording | None, Scene | N
     if not source.exists():
         raise BwrError(f"{source}: no such scene file or run directory")
     scene = load_scene(source)
-    cached = CACHE_ROOT / cache_key(scene)
+    cached = cached_run(scene)
     if use_cache and cached.is_dir():
         return Recording.from_run_dir(cached), None
     return None, scene
-
-
-def _simulate(scene: Scene, *, use_cache: bool) -> Recording:
-    """Run the scene with `python -m bwr_twin.run` in a child process at lower priority (its
-    progress bar and any error line go to our stderr), into the cache, and read the run back."""
-    from bwr_twin.replay.recording import Recording, cache_key
-
-    with tempfile.TemporaryDirectory() as scratch:
-        run_dir = CACHE_ROOT / cache_key(scene) if use_cache else Path(scratch) / "run"
-        command = [
-            sys.executable,
-            "-m",
-            "bwr_twin.run",
-            str(scene.path),
-            "--out",
-            str(run_dir),
-            "--no-plots",
-            "--overwrite",
-        ]
-        child = subprocess.Popen(command, stdout=subprocess.DEVNULL)
-        try:
-            with contextlib.suppress(ProcessLookupError):  # a child that failed at once has gone
-                os.setpriority(
-                    os.PRIO_PROCESS, child.pid, os.getpriority(os.PRIO_PROCESS, 0) + SIMULATION_NICENESS
-                )
-            status = child.wait()
-        finally:
-            if child.poll() is None:
-                child.terminate()
-                child.wait()
-        if status != 0:
-            raise SimulationFailed(status)
-        return Recording.from_run_dir(run_dir)
 
 
 if __name__ == "__main__":

@@ -64,11 +64,12 @@ class ReplayServer:
         if isinstance(source, Recording):
             self.load(source)
         else:
+            self._progress = self.server.gui.add_progress_bar(0.0, animated=True)
             self._waiting = [
                 self.server.gui.add_markdown(
                     f"Simulating the {plan.duration:g} s reclaim; the timeline appears when it is done."
                 ),
-                self.server.gui.add_progress_bar(100.0, animated=True),
+                self._progress,
             ]
 
     @property
@@ -79,6 +80,11 @@ class ReplayServer:
     def url(self) -> str:
         host = LOCAL_ONLY if self.host in ("0.0.0.0", "::", "") else self.host
         return f"http://{host}:{self.port}"
+
+    def show_progress(self, share: float) -> None:
+        """Show how much of the run is simulated, `share` from 0 to 1, until `load`."""
+        if self._waiting and round(100 * share) != round(self._progress.value):
+            self._progress.value = float(round(100 * share))
 
     def load(self, recording: Recording) -> None:
         """Show a finished run: its trail, the timeline, the readout and the charts."""
