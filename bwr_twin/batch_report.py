@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -16,6 +14,7 @@ from typing import Literal
 import numpy as np
 
 from bwr_twin.machine import AXES, UNITS, to_display
+from bwr_twin.results import write_atomically
 from bwr_twin.scene import is_number
 from bwr_twin.sweep import PlannedRun, Sweep, parameter_label
 
@@ -31,16 +30,6 @@ class RunRecord:
     status: Status
     error: str = ""  # one line, for a run that failed or did not run
     metrics: dict | None = None
-
-
-def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    """Call write(temporary path), then rename the file into place; no partial file is left."""
-    temporary = path.parent / f".{path.name}.partial-{os.getpid()}"
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
 
 
 def write_summary(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from bwr_twin.errors import BwrError
 from bwr_twin.replay import readout
 from bwr_twin.replay.recording import Recording
 from bwr_twin.replay.view import SceneView
+from bwr_twin.results import write_atomically
 
 EXPORT_SPEED = 10.0  # x real time
 EXPORT_FRAME_RATE = 25.0  # frames per second of playback: smooth at 10x
@@ -43,13 +43,7 @@ def export_html(
     finally:
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
-    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")  # a sibling: os.replace stays atomic
-    try:
-        partial.write_text(html, encoding="utf-8")
-        os.replace(partial, path)
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
+    write_atomically(path, lambda partial: partial.write_text(html, encoding="utf-8"))
     return path.stat().st_size
 
 
