@@ -220,6 +220,15 @@ def test_close_via_points_share_one_label_and_each_is_named_once(paper_machine):
     assert sorted(i for members in groups.values() for i in members) == [0, 1, 2, 3]
 
 
+def test_slider_labels_via_points_that_do_not_crowd_each_other():
+    from bwr_twin.replay.app import via_point_marks
+
+    assert via_point_marks([0.0, 200.0, 300.0, 500.0, 700.0]) == tuple(
+        (t, f"P{i + 1}") for i, t in enumerate([0.0, 200.0, 300.0, 500.0, 700.0])
+    )
+    assert via_point_marks([0.0, 620.0, 680.0, 1680.0]) == ((0.0, "P1"), (620.0, "P2"), 680.0, (1680.0, "P4"))
+
+
 # -- recordings, readout, charts --------------------------------------------------------------
 
 

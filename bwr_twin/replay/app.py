@@ -34,6 +34,7 @@ CHART_PERIOD = 0.5  # s between time-marker updates while playing (each re-sends
 SPEEDS = (1, 100)  # x real time, the speed slider's range
 INITIAL_SPEED = 10
 LOCAL_ONLY = "127.0.0.1"
+MARK_SPACING = 0.05  # of the run: a via point's mark closer than this to the last labelled one is unlabelled
 PANEL_SHARE = 0.3  # of a typical window's width, covered by the (large) control panel
 
 
@@ -64,13 +65,11 @@ class ReplayServer:
         if isinstance(source, Recording):
             self.load(source)
         else:
+            note = self.server.gui.add_markdown(
+                f"Simulating the {plan.duration:g} s reclaim; the timeline appears when it is done."
+            )
             self._progress = self.server.gui.add_progress_bar(0.0, animated=True)
-            self._waiting = [
-                self.server.gui.add_markdown(
-                    f"Simulating the {plan.duration:g} s reclaim; the timeline appears when it is done."
-                ),
-                self._progress,
-            ]
+            self._waiting = [note, self._progress]
 
     @property
     def port(self) -> int:
@@ -118,6 +117,21 @@ def _check_listenable(host: str) -> None:
         raise BwrError(f"cannot listen on host {host!r}: {exc.strerror or exc}") from None
 
 
+def via_point_marks(times) -> tuple[float | tuple[float, str], ...]:
+    """Time slider marks at the via points, labelled P1, P2, ... unless a label would print over
+    the one before (the Jump buttons name every via point)."""
+    marks: list[float | tuple[float, str]] = []
+    labelled = -float("inf")
+    spacing = MARK_SPACING * float(times[-1] - times[0])
+    for i, t in enumerate(times):
+        if t - labelled >= spacing:
+            marks.append((float(t), f"P{i + 1}"))
+            labelled = t
+        else:
+            marks.append(float(t))
+    return tuple(marks)
+
+
 class Player:
     """The timeline's one owner: time, play state and speed live here and change only on its thread."""
 
@@ -153,7 +167,7 @@ class Player:
                 max=self.end,
                 step=step,
                 initial_value=self.start,
-                marks=tuple((float(t), f"P{i + 1}") for i, t in enumerate(plan.via_times)),
+                marks=via_point_marks(plan.via_times),
             )
             self.speed_slider = gui.add_slider(
                 "Speed [x]",
