@@ -39,9 +39,9 @@ class Payload(Protocol):
     pos: tuple[float, float, float]
 
 
-def to_display(axis_index: int, value: float) -> float:
-    """A joint value in its display unit (m or degrees)."""
-    return value if axis_index == 0 else float(np.degrees(value))
+def to_display(axis_index: int, value):
+    """A joint value, or an array of them, in its display unit (m or degrees)."""
+    return value if axis_index == 0 else np.degrees(value)
 
 
 def describe(axis_index: int, value: float) -> str:
