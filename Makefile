@@ -11,7 +11,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
 	@echo "computing the fuzzy control surface with scikit-fuzzy (once, then cached) ..."
-	$(PY) -c "from bwr_twin.fuzzy import FuzzySurface; from bwr_twin.rulebase import RuleBase; FuzzySurface.load(RuleBase.paper())"
+	$(PY) -c "from bwr_twin.control.fuzzy import FuzzySurface; from bwr_twin.control.rulebase import RuleBase; FuzzySurface.load(RuleBase.paper())"
 	touch $@
 
 setup: $(VENV)/.installed

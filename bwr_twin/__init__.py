@@ -1,7 +1,10 @@
 """bwr_twin: a MuJoCo digital twin of a bucket wheel reclaimer under fuzzy, model-based control.
 
-Data flow: machine (MJCF, kinematics) -> trajectory -> controller -> simulation -> results
--> plots, replay and batch runs.
+The sub-packages follow the data flow:
+
+    config (scene and sweep files) -> model (MJCF machine, kinematics) -> planning (trajectory)
+    -> control (fuzzy surface, belief, control law) -> sim (plant, encoders, lockstep loop)
+    -> results (records, metrics, run directories, plots) -> batch, replay
 """
 
 from bwr_twin.errors import (
@@ -12,7 +15,7 @@ from bwr_twin.errors import (
     SimulationError,
     UnreachableError,
 )
-from bwr_twin.machine import AXES, Machine
+from bwr_twin.model.machine import AXES, Machine
 
 __all__ = [
     "AXES",

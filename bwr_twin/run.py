@@ -1,7 +1,9 @@
 """Run one scene headless and write its results.
 
-    python -m bwr_twin.run scenes/paper_individual_gains.toml --out out/individual
+    python -m bwr_twin.run paper_individual_gains --out out/individual
     python -m bwr_twin.run SCENE --out DIR [--model MJCF] [--seed N] [--overwrite] [--no-plots]
+
+SCENE is a scene file, or the name of a shipped one (bwr_twin/scenes/).
 
 Writes DIR/metrics.json, DIR/timeseries.csv, DIR/scene.json and the paper's figures as PNG,
 then prints the maximum errors with their times. DIR appears only when complete. Bad input
@@ -53,7 +55,7 @@ def simulation_progress_bar() -> Iterator[Callable[[float, float], None]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bwr_twin.run", description=__doc__.split("\n\n")[0])
-    parser.add_argument("scene", help="scene TOML file, e.g. scenes/paper_individual_gains.toml")
+    parser.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. paper_individual_gains")
     parser.add_argument("--out", required=True, type=Path, help="output directory (must not exist)")
     parser.add_argument("--model", help="machine MJCF replacing the scene's (and the controller's belief, "
                         "unless the scene names one)")
@@ -62,12 +64,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     args = parser.parse_args(argv)
 
-    from bwr_twin.results import summary_table, write_run
-    from bwr_twin.scene import load_scene
-    from bwr_twin.simulate import simulate
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.results.metrics import summary_table
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.shipped import find_scene
+    from bwr_twin.sim.lockstep import simulate
 
     try:
-        scene = load_scene(args.scene, scene_overrides(args.model, args.seed))
+        scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
         if args.out.exists() and not args.overwrite:
             raise BwrError(f"{args.out}: already exists; choose another --out or pass --overwrite")
         started = time.perf_counter()

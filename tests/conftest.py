@@ -4,10 +4,12 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-PAPER_MJCF = ROOT / "mjcf" / "bwr.xml"
-VARIANT_MJCF = ROOT / "tests" / "assets" / "bwr_variant.xml"
-SCENES = ROOT / "scenes"
+from bwr_twin.shipped import MJCF, SCENES
+
+ROOT = Path(__file__).resolve().parents[1]  # the checkout: tests run commands from there
+PAPER_MJCF = MJCF / "bwr.xml"
+HEAVY_MJCF = MJCF / "bwr_heavy.xml"
+VARIANT_MJCF = Path(__file__).resolve().parent / "assets" / "bwr_variant.xml"
 
 # The paper's via points in frame 0 (Sec. 4), typed in unchanged, with their times in s.
 PAPER_VIA_POINTS = [
@@ -34,7 +36,7 @@ def write_short_scene(folder: Path, via_points=SHORT_VIA_POINTS, edit=None) -> P
     text = (SCENES / "paper_individual_gains.toml").read_text()
     start, end = text.index("[path]"), text.index("[simulation]")
     text = text[:start] + path_table(via_points) + "\n" + text[end:]
-    text = text.replace('"../mjcf/', f'"{ROOT}/mjcf/').replace('"rulebases/', f'"{SCENES}/rulebases/')
+    text = text.replace('"../mjcf/', f'"{MJCF}/').replace('"rulebases/', f'"{SCENES}/rulebases/')
     if edit:
         text = edit(text)
     folder.mkdir(parents=True, exist_ok=True)

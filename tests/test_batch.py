@@ -13,12 +13,12 @@ import sys
 import time
 
 import pytest
-from conftest import PAPER_MJCF, ROOT, SHORT_VIA_POINTS, VARIANT_MJCF, write_short_scene
+from conftest import HEAVY_MJCF, PAPER_MJCF, ROOT, SHORT_VIA_POINTS, VARIANT_MJCF, write_short_scene
 
 from bwr_twin.batch import BatchLock
+from bwr_twin.config.sweep import load_sweep
 from bwr_twin.errors import SceneError
-from bwr_twin.machine import AXES
-from bwr_twin.sweep import load_sweep
+from bwr_twin.model.machine import AXES
 
 # Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
 FAR_VIA_POINTS = [*SHORT_VIA_POINTS, {"t": 40.0, "p": [-55.0, -11.0, 2.0]}]
@@ -77,7 +77,7 @@ def short_batch(tmp_path_factory):
     folder = tmp_path_factory.mktemp("short")
     sweep = write_sweep(folder, SHORT_SWEEP)
     out = folder / "reference"
-    proc = batch_cli(sweep, "--out", out, "--workers", 2)
+    proc = batch_cli(sweep, "--out", out, "--workers", 2, "--plots")  # two locksteps of two runs
     assert proc.returncode == 0, proc.stderr
     return sweep, out, proc
 
@@ -202,7 +202,8 @@ def test_rerun_skips_what_is_complete(short_batch):
 
 
 def start_and_wait_for_first_run(sweep, out):
-    proc = batch_cli(sweep, "--out", out, "--workers", 2, start_new_session=True)
+    """A batch of one-run locksteps (not the reference's two-run ones), stopped after its first."""
+    proc = batch_cli(sweep, "--out", out, "--workers", 2, "--chunk", 1, "--plots", start_new_session=True)
     deadline = time.monotonic() + 120
     while not run_dirs(out):
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
@@ -222,7 +223,7 @@ def test_kill_9_then_rerun_gives_the_uninterrupted_result(short_batch, tmp_path)
         assert {p.name for p in (out / name).iterdir()} == RUN_FILES
     assert len(summary_rows(out)) == 4  # the summary is whole, if not up to date
     assert (out / ".lock").exists()  # a dead batch's lock file: no longer locked
-    rerun = batch_cli(sweep, "--out", out)
+    rerun = batch_cli(sweep, "--out", out, "--plots")
     assert rerun.returncode == 0, rerun.stderr
     assert f"({len(survivors)} already done, skipped)" in rerun.stdout
     same_results(out, reference)
@@ -266,7 +267,7 @@ def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
 
 
 def test_the_heavy_machine_runs_in_a_batch_by_swapping_the_mjcf(tmp_path):
-    heavy = ROOT / "mjcf" / "bwr_heavy.xml"
+    heavy = HEAVY_MJCF
     sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{heavy}"]\n')
     out = tmp_path / "out"
     proc = batch_cli(sweep, "--out", out, "--no-plots")
@@ -328,7 +329,7 @@ def test_an_unreachable_scheduler_exits_2(tmp_path):
 @pytest.mark.slow
 def test_ci_sweep_reproduces_the_paper_on_every_seed(tmp_path):
     out = tmp_path / "ci"
-    proc = batch_cli("scenes/sweeps/ci_reproduction.toml", "--out", out)
+    proc = batch_cli("sweeps/ci_reproduction", "--out", out)
     assert proc.returncode == 0, proc.stderr
     rows = summary_rows(out)
     assert len(rows) == 8 and {row["status"] for row in rows} == {"ok"}

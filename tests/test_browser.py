@@ -14,10 +14,10 @@ from collections import Counter
 import numpy as np
 import pytest
 from conftest import ROOT, SCENES, SHORT_VIA_POINTS
+from headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
 from bwr_twin.replay import Recording, ReplayServer, export_html
 from bwr_twin.replay.geometry import visual_geoms
-from bwr_twin.replay.headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
 pytestmark = pytest.mark.browser
 
@@ -47,9 +47,9 @@ def browser():
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
-    from bwr_twin.results import write_run
-    from bwr_twin.scene import load_scene
-    from bwr_twin.simulate import simulate
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.sim.lockstep import simulate
 
     run_dir = tmp_path_factory.mktemp("browser") / "short"
     write_run(

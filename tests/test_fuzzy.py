@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 from conftest import SCENES
 
-from bwr_twin.errors import SceneError
-from bwr_twin.fuzzy import (
+from bwr_twin.control.fuzzy import (
     CACHE_ENV,
     DEFAULT_GRID_POINTS,
     FuzzySurface,
@@ -15,7 +14,8 @@ from bwr_twin.fuzzy import (
     default_cache_dir,
     skfuzzy_compute,
 )
-from bwr_twin.rulebase import PAPER_RULES, RuleBase
+from bwr_twin.control.rulebase import PAPER_RULES, RuleBase
+from bwr_twin.errors import SceneError
 
 PAPER_FILE = SCENES / "rulebases" / "paper_table2.toml"
 TABLE_2 = """\
@@ -174,7 +174,7 @@ def test_cache_is_written_once_and_reused(rule_base, tmp_path, monkeypatch):
     def no_rebuild(*args, **kwargs):
         raise AssertionError("the cache file should have been used")
 
-    monkeypatch.setattr("bwr_twin.fuzzy.compute_grid", no_rebuild)
+    monkeypatch.setattr("bwr_twin.control.fuzzy.compute_grid", no_rebuild)
     second = FuzzySurface.load(rule_base, grid_points=SMALL_GRID)
     assert not second.built and second.cache_path == first.cache_path
     np.testing.assert_array_equal(second.values, first.values)

@@ -3,15 +3,13 @@
 
 import numpy as np
 import pytest
+from conftest import HEAVY_MJCF, SCENES
 
 from bwr_twin import ModelError
-from bwr_twin.machine import AXES
-from bwr_twin.results import compute_metrics
-from bwr_twin.scene import load_scene
-from bwr_twin.simulate import simulate
-from conftest import ROOT, SCENES
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import AXES
+from bwr_twin.sim.lockstep import simulate
 
-HEAVY_MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 # A 500 s path on which all three axes move: (travel m, slew deg, luff deg) from
 # (-40, 0, 5) to (-30, 40, 8) to (-20, 80, 0).
 FIRST_LEGS = {
@@ -25,7 +23,7 @@ FIRST_LEGS = {
 
 def run(scene_name, **overrides):
     result = simulate(load_scene(SCENES / f"{scene_name}.toml", overrides))
-    return result, compute_metrics(result)
+    return result, result.metrics
 
 
 @pytest.fixture(scope="module")

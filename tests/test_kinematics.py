@@ -3,10 +3,10 @@
 import mujoco
 import numpy as np
 import pytest
+from conftest import PAPER_VIA_POINTS
 
 from bwr_twin import EnvelopeError, UnreachableError
-from bwr_twin.machine import paper_to_world, world_to_paper
-from conftest import PAPER_VIA_POINTS
+from bwr_twin.model.machine import paper_to_world, world_to_paper
 
 
 def paper_eq3(x, y, z):

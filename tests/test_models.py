@@ -4,11 +4,12 @@
 import mujoco
 import numpy as np
 import pytest
+from conftest import PAPER_MJCF, VARIANT_MJCF
 
 from bwr_twin import Machine, ModelError
-from conftest import ROOT, VARIANT_MJCF
+from bwr_twin.shipped import MJCF
 
-MODEL_FILES = sorted((ROOT / "mjcf").glob("*.xml")) + [VARIANT_MJCF]
+MODEL_FILES = sorted(MJCF.glob("*.xml")) + [VARIANT_MJCF]
 
 
 @pytest.mark.parametrize("path", MODEL_FILES, ids=lambda p: p.name)
@@ -39,7 +40,7 @@ def test_visual_geometry_carries_no_mass_and_no_contacts(path):
 
 
 def test_paper_machine_has_home_keyframe_at_first_via_point():
-    machine = Machine(ROOT / "mjcf" / "bwr.xml")
+    machine = Machine(PAPER_MJCF)
     key = mujoco.mj_name2id(machine.model, mujoco.mjtObj.mjOBJ_KEY, "home")
     assert key >= 0
     np.testing.assert_allclose(machine.fk(machine.model.key_qpos[key]), [55, 0, 11])
@@ -51,7 +52,7 @@ def test_missing_file_is_a_model_error(tmp_path):
 
 
 def test_contract_breach_names_file_and_what_is_wrong(tmp_path):
-    text = (ROOT / "mjcf" / "bwr.xml").read_text()
+    text = PAPER_MJCF.read_text()
     text = text.replace('<joint name="luff"', '<joint name="boom_hinge"').replace('joint="luff"', 'joint="boom_hinge"')
     path = tmp_path / "renamed.xml"
     path.write_text(text)

@@ -12,17 +12,16 @@ import urllib.request
 import mujoco
 import numpy as np
 import pytest
-from conftest import PAPER_MJCF, ROOT, SCENES, SHORT_VIA_POINTS, VARIANT_MJCF
+from conftest import HEAVY_MJCF, PAPER_MJCF, ROOT, SCENES, SHORT_VIA_POINTS, VARIANT_MJCF
 
 from bwr_twin import Machine
-from bwr_twin.machine import paper_to_world
+from bwr_twin.model.machine import paper_to_world
 from bwr_twin.replay import Plan, Recording, ReplayServer, export_html, readout
 from bwr_twin.replay.charts import MARKER_TOP, charts
 from bwr_twin.replay.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.replay.recording import cache_key
 from bwr_twin.replay.scenery import ANGLE_OF_REPOSE, CREST_HEIGHT_FRACTION, stockpile
 
-HEAVY_MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 MACHINES = pytest.mark.parametrize(
     "mjcf", [PAPER_MJCF, VARIANT_MJCF, HEAVY_MJCF], ids=["paper", "variant", "heavy"]
 )
@@ -31,7 +30,7 @@ EXPORT_LIMIT = 5_000_000  # bytes: the offline recording must stay under 5 MB
 
 @pytest.fixture(scope="session")
 def short_scene():
-    from bwr_twin.scene import load_scene
+    from bwr_twin.config.scene import load_scene
 
     return load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})
 
@@ -39,8 +38,8 @@ def short_scene():
 @pytest.fixture(scope="session")
 def short_run(short_scene, tmp_path_factory):
     """A 20 s reclaim, simulated once: (run directory, RunResult)."""
-    from bwr_twin.results import write_run
-    from bwr_twin.simulate import simulate
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.sim.lockstep import simulate
 
     result = simulate(short_scene)
     run_dir = tmp_path_factory.mktemp("replay") / "short"
@@ -91,7 +90,7 @@ def test_one_node_per_visual_geom_with_mujoco_sizes(mjcf):
 
 def _scene_for(mjcf):
     """The short scene on another machine, its path moved to where that machine reaches."""
-    from bwr_twin.scene import load_scene
+    from bwr_twin.config.scene import load_scene
 
     machine = Machine(mjcf)
     home = machine.fk(np.zeros(3))
@@ -289,7 +288,7 @@ def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, shor
 
 
 def test_cache_key_follows_what_decides_the_run(short_scene):
-    from bwr_twin.scene import load_scene
+    from bwr_twin.config.scene import load_scene
 
     same = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})
     reseeded = load_scene(
@@ -408,7 +407,7 @@ def test_cli_picks_a_free_port_for_port_0(short_run):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["nowhere.toml"], "nowhere.toml: no such scene file or run directory"),
+        (["nowhere.toml"], "nowhere.toml: scene file not found, nor a shipped scene"),
         (["tests"], "tests: not a run directory of bwr_twin.run"),
         (["--port", "70000"], "70000 is not a TCP port"),
     ],

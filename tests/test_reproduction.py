@@ -6,18 +6,17 @@ near t = 340 s; the individual gains keep every error within a few centimetres.
 
 import numpy as np
 import pytest
-
-from bwr_twin.machine import AXES
-from bwr_twin.results import compute_metrics
-from bwr_twin.scene import load_scene
-from bwr_twin.simulate import simulate
 from conftest import PAPER_VIA_POINTS, SCENES
+
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import AXES
+from bwr_twin.sim.lockstep import simulate
 
 SEEDS = (1, 2, 3)
 
 
 def metrics_of(scene_name, **overrides):
-    return compute_metrics(simulate(load_scene(SCENES / f"{scene_name}.toml", overrides)))
+    return simulate(load_scene(SCENES / f"{scene_name}.toml", overrides)).metrics
 
 
 @pytest.mark.slow

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from conftest import PAPER_MJCF, PAPER_VIA_POINTS, SCENES
 
 from bwr_twin import SceneError
-from bwr_twin.scene import load_scene
-from conftest import PAPER_MJCF, PAPER_VIA_POINTS, SCENES
+from bwr_twin.config.scene import load_scene
 
 INDIVIDUAL = SCENES / "paper_individual_gains.toml"
 
@@ -52,7 +52,7 @@ def test_overrides_are_validated_like_the_file():
         ("timestep = 0.002", "timestep = 0.003", r"'simulation.control_period' \(0.01 s\) must be a whole multiple"),
         ('mjcf = "../mjcf/bwr.xml"', 'mjcf = "../mjcf/nowhere.xml"', r"'machine.mjcf' names a file that does not exist: .*nowhere.xml"),
         ("[encoders]\n", "", r"edited.toml: unknown key 'simulation.resolution'"),
-        ("velocity_source = \"true\"", "velocity_source = true", r"'controller.velocity_source' must be one of"),
+        ("velocity_source = \"true\"", "velocity_source = true", r"'encoders.velocity_source' must be one of"),
     ],
 )
 def test_bad_scene_names_file_key_and_rule(tmp_path, old, new, message):

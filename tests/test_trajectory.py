@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
+from conftest import PAPER_VIA_POINTS
 
 from bwr_twin import EnvelopeError, UnreachableError
-from bwr_twin.machine import paper_to_world
-from bwr_twin.scene import PathSection, ViaPoint
-from bwr_twin.trajectory import Trajectory
-from conftest import PAPER_VIA_POINTS
+from bwr_twin.config.scene import PathSection, ViaPoint
+from bwr_twin.model.machine import paper_to_world
+from bwr_twin.planning.trajectory import Trajectory
 
 
 def paper_path():

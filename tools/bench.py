@@ -1,69 +1,84 @@
-"""Speed of the closed loop against bare MuJoCo, measured in one process.
+"""Speed of the lockstep engine against MuJoCo's own floor, measured in one process.
 
-    python tools/bench.py [SCENE] [--repeat N]
+    python tools/bench.py [SCENE] [--runs 128] [--threads 0] [--repeat 2]
 
-Times the scene's whole run (`bwr_twin.simulate.simulate`, no file output) and a bare
-`mj_step` loop over the same number of physics steps on the same model, alternating them
-`--repeat` times and keeping the best of each (the machine is shared and noisy), then prints
-`ratio: X` (run time over bare-loop time; target <= 10). It also prints the cost of one fuzzy
-evaluation for the three axes against scikit-fuzzy's own `compute()`.
+Runs the scene over `--runs` seeds as one lockstep (`simulate_lockstep`, no file output) and,
+alternating with it, MuJoCo's floor for the same work: a bare `Batch.step` of a physics-only
+copy of the machine over the same runs, physics steps and threads, one call per control period,
+with nothing in between. Keeps the best of `--repeat` of each (the machine is shared and noisy)
+and prints `floor ratio: X` (lockstep time over floor time; target <= 1.3). Then prints the time
+of a single run (a lockstep of one) and the cost of one fuzzy evaluation against scikit-fuzzy's
+own `compute()`.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
+import os
 import time
 import timeit
-from pathlib import Path
 
-import mujoco
 import numpy as np
+from mujoco.batch import Batch
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bwr_twin.fuzzy import FuzzySurface, skfuzzy_compute  # noqa: E402
-from bwr_twin.machine import Machine  # noqa: E402
-from bwr_twin.rulebase import RuleBase  # noqa: E402
-from bwr_twin.scene import load_scene  # noqa: E402
-from bwr_twin.simulate import simulate  # noqa: E402
+from bwr_twin.config.scene import load_scene
+from bwr_twin.control.fuzzy import FuzzySurface, skfuzzy_compute
+from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.model.machine import Machine
+from bwr_twin.shipped import DEFAULT_SCENE
+from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 
 
-def bare_loop(mjcf: Path, timestep: float, steps: int) -> float:
-    machine = Machine(mjcf)
-    machine.model.opt.timestep = timestep
-    data = mujoco.MjData(machine.model)
+def floor(scene, runs: int, threads: int, periods: int) -> float:
+    """Wall time of bare Batch.step calls, one per control period, s."""
+    sim = scene.simulation
+    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+    batch = Batch(machine.physics_model(sim.timestep), runs, nthread=threads)
+    batch.qpos[:] = machine.ik(machine.fk(np.zeros(3)))
+    substeps = round(sim.control_period / sim.timestep)
     started = time.perf_counter()
-    for _ in range(steps):
-        mujoco.mj_step(machine.model, data)
+    for _ in range(periods):
+        batch.step(nstep=substeps)
     return time.perf_counter() - started
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("scene", nargs="?", default=str(ROOT / "scenes" / "paper_individual_gains.toml"))
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
+    parser.add_argument("--runs", type=int, default=128, help="runs in the lockstep")
+    parser.add_argument("--threads", type=int, default=0, help="MuJoCo batch threads (0: all cores)")
+    parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
 
-    scene = load_scene(args.scene)
-    simulate(scene)  # warm the fuzzy surface cache and imports
-    duration = scene.trajectory.via_points[-1].t - scene.trajectory.via_points[0].t
-    steps = int(round(duration / scene.simulation.timestep))
-    run_times, bare_times = [], []
+    base = load_scene(args.scene)
+    scenes = [load_scene(args.scene, {"simulation.seed": seed}) for seed in range(1, args.runs + 1)]
+    sim = base.simulation
+    duration = base.trajectory.via_points[-1].t - base.trajectory.via_points[0].t
+    periods = round(duration / sim.control_period) + 1
+    simulate(base)  # warm the fuzzy surface cache and imports
+    lockstep_times, floor_times = [], []
     for _ in range(args.repeat):
-        bare_times.append(bare_loop(scene.machine.mjcf, scene.simulation.timestep, steps))
+        floor_times.append(floor(base, args.runs, args.threads, periods))
         started = time.perf_counter()
-        simulate(scene)
-        run_times.append(time.perf_counter() - started)
-    run, bare = min(run_times), min(bare_times)
-    print(f"scene: {Path(args.scene).name}, {duration:g} s simulated, {steps} physics steps of "
-          f"{scene.simulation.timestep * 1e3:g} ms, control every {scene.simulation.control_period * 1e3:g} ms")
-    print(f"closed-loop run: {run:.3f} s (best of {args.repeat}), {duration / run:.0f}x real time")
-    print(f"bare mj_step loop: {bare:.3f} s (best of {args.repeat})")
-    print(f"ratio: {run / bare:.2f}")
+        simulate_lockstep(scenes, nthread=args.threads)
+        lockstep_times.append(time.perf_counter() - started)
+    lockstep, bare = min(lockstep_times), min(floor_times)
+    steps = periods * round(sim.control_period / sim.timestep)
+    threads = args.threads or os.cpu_count()
+    print(f"scene: {base.path.name}, {duration:g} s simulated, {steps} physics steps of "
+          f"{sim.timestep * 1e3:g} ms a run, control every {sim.control_period * 1e3:g} ms; "
+          f"{args.runs} runs in one lockstep on {threads} threads")
+    print(f"lockstep: {lockstep:.2f} s (best of {args.repeat}), {lockstep / args.runs:.3f} s a run, "
+          f"{1e6 * lockstep / (args.runs * steps):.2f} us a physics step")
+    print(f"floor, bare Batch.step: {bare:.2f} s, {1e6 * bare / (args.runs * steps):.2f} us a physics step")
+    print(f"floor ratio: {lockstep / bare:.2f}")
 
-    rule_base = RuleBase.from_toml(scene.controller.rule_base)
+    started = time.perf_counter()
+    simulate(base)
+    single = time.perf_counter() - started
+    print(f"single run (a lockstep of one): {single:.2f} s, {duration / single:.0f}x real time")
+
+    rule_base = RuleBase.from_toml(base.controller.rule_base)
     surface = FuzzySurface.load(rule_base)
     rng = np.random.default_rng(0)
     e, ec, out = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3), np.zeros(3)

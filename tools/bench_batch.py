@@ -23,13 +23,13 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from bwr_twin.results import write_run
-from bwr_twin.scene import load_scene
-from bwr_twin.simulate import simulate
+from bwr_twin.config.scene import load_scene
+from bwr_twin.results.rundir import write_run
+from bwr_twin.shipped import DEFAULT_SCENE
+from bwr_twin.sim.lockstep import simulate
 
-SCENE = ROOT / "scenes" / "paper_individual_gains.toml"
+SCENE = DEFAULT_SCENE
 
 
 def one_run(folder: Path, plots: bool) -> tuple[float, float]:

@@ -21,10 +21,13 @@ import threading
 import time
 from pathlib import Path
 
-from bwr_twin.replay.headless import RENDERED_TRIANGLES, chromium_context, find_chromium
-
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_SCENE = ROOT / "scenes" / "paper_individual_gains.toml"
+sys.path.insert(0, str(ROOT / "tests"))  # the headless-browser driver the browser tests use
+
+from headless import RENDERED_TRIANGLES, chromium_context, find_chromium  # noqa: E402
+
+from bwr_twin.shipped import DEFAULT_SCENE  # noqa: E402
+
 TIMEOUT = 60.0  # s, per stage
 
 
@@ -32,9 +35,9 @@ def machine_triangles(source: Path) -> int:
     """Triangles of the machine's visual geoms, from the scene's (or run's) MJCF."""
     import json
 
-    from bwr_twin.machine import Machine
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.model.machine import Machine
     from bwr_twin.replay.geometry import visual_geoms
-    from bwr_twin.scene import load_scene
 
     mjcf = (
         json.loads((source / "scene.json").read_text())["machine"]["mjcf"]

@@ -7,23 +7,21 @@ docs/heavy_machine.md, and a figure of the errors and the slew torque of every s
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.figure import Figure
 
-from bwr_twin.machine import AXES, UNITS, to_display  # noqa: E402
-from bwr_twin.results import compute_metrics  # noqa: E402
-from bwr_twin.scene import load_scene  # noqa: E402
-from bwr_twin.simulate import simulate  # noqa: E402
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import AXES, UNITS, to_display
+from bwr_twin.shipped import SCENES
+from bwr_twin.sim.lockstep import simulate
 
-RMS_WINDOW = 10.0  # s: the slew torque switches every control period; its RMS shows the load
-SCENES = ("heavy_reclaim", "heavy_coulomb_friction", "heavy_wind", "heavy_model_mismatch")
+RMS_WINDOW = 10.0  # s: the slew torque switches from one record to the next; its RMS shows the load
+HEAVY_SCENES = ("heavy_reclaim", "heavy_coulomb_friction", "heavy_wind", "heavy_model_mismatch")
 
 
 def main() -> None:
@@ -34,9 +32,9 @@ def main() -> None:
     results = {}
     print("| scene | travel error max | slew error max | luff error max | travel RMS | slew drive RMS | luff drive max | time at drive limit (travel, slew, luff) |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
-    for name in SCENES:
-        results[name] = simulate(load_scene(ROOT / "scenes" / f"{name}.toml", {"simulation.seed": args.seed}))
-        m = compute_metrics(results[name])
+    for name in HEAVY_SCENES:
+        results[name] = simulate(load_scene(SCENES / f"{name}.toml", {"simulation.seed": args.seed}))
+        m = results[name].metrics
         saturation = ", ".join(f"{100 * m[a]['saturation_fraction']:.1f} %" for a in ("travel", "slew", "luff"))
         print(
             f"| `{name}` | {m['travel']['position_error_max']:+.3f} m at {m['travel']['position_error_max_time']:.0f} s "
@@ -58,7 +56,7 @@ def save_figure(results: dict, path: Path) -> None:
         for j, ax in enumerate(axes[:3]):
             ax.plot(result.time, to_display(j, error[:, j]), lw=0.7, label=name)
             ax.set_ylabel(f"{AXES[j]} error [{UNITS[j]}]")
-        window = max(1, round(RMS_WINDOW / result.scene.simulation.control_period))
+        window = max(1, round(RMS_WINDOW / result.scene.simulation.record_period))
         mean_square = np.convolve(result.drive_force[:, 1] ** 2, np.ones(window) / window, mode="same")
         axes[3].plot(result.time, np.sqrt(mean_square) / 1e6, lw=1.0, label=name)
     axes[3].set_ylabel(f"slew drive, {RMS_WINDOW:g} s RMS [MN m]")

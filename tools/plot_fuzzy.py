@@ -3,7 +3,7 @@ in 3D and as a heat map (like gensurf), as PNG files.
 
     python tools/plot_fuzzy.py [--rules PATH] [--out DIR]
 
-The surface is the compiled one the simulation uses (bwr_twin.fuzzy.FuzzySurface), so the first
+The surface is the compiled one the simulation uses (bwr_twin.control.fuzzy.FuzzySurface), so the first
 run for a rule base computes it with skfuzzy (about 15 s) and later runs read the cache.
 """
 
@@ -16,13 +16,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")  # files only; the machines have no display
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout, installed or not
-from bwr_twin.errors import BwrError  # noqa: E402
-from bwr_twin.fuzzy import FuzzySurface, build_control_system  # noqa: E402
-from bwr_twin.rulebase import PAPER_RULES, RuleBase  # noqa: E402
+from bwr_twin.control.fuzzy import FuzzySurface, build_control_system
+from bwr_twin.control.rulebase import PAPER_RULES, RuleBase
+from bwr_twin.errors import BwrError
 
 TITLE_INPUTS = {"e": "position error e (scaled)", "ec": "velocity error ec (scaled)", "u": "output u"}
 

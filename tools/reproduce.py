@@ -8,19 +8,17 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import sys
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from bwr_twin.machine import AXES, UNITS, to_display  # noqa: E402
-from bwr_twin.results import compute_metrics, write_run  # noqa: E402
-from bwr_twin.scene import load_scene  # noqa: E402
-from bwr_twin.simulate import simulate  # noqa: E402
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import AXES, UNITS, to_display
+from bwr_twin.results.rundir import write_run
+from bwr_twin.shipped import SCENES
+from bwr_twin.sim.lockstep import simulate
 
-SCENES = ("paper_shared_gain", "paper_individual_gains")
+PAPER_SCENES = ("paper_shared_gain", "paper_individual_gains")
 FIGURES = ("positions.png", "errors_position.png", "errors_velocity.png", "errors_acceleration.png", "fuzzy_outputs.png", "cp_path.png")
 
 
@@ -30,13 +28,13 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     args = parser.parse_args()
 
-    for name in SCENES:
+    for name in PAPER_SCENES:
         print(f"\n### {name} (seeds {', '.join(map(str, args.seeds))})\n")
         print("| axis | position error max | at t | velocity error max | acceleration error max | position error RMS |")
         print("| --- | --- | --- | --- | --- | --- |")
         runs = []
         for seed in args.seeds:
-            result = simulate(load_scene(ROOT / "scenes" / f"{name}.toml", {"simulation.seed": seed}))
+            result = simulate(load_scene(SCENES / f"{name}.toml", {"simulation.seed": seed}))
             if seed == args.seeds[0]:
                 run_dir = args.out / name
                 write_run(result, run_dir, overwrite=True)
@@ -44,7 +42,7 @@ def main() -> None:
                 figures.mkdir(parents=True, exist_ok=True)
                 for figure in FIGURES:
                     shutil.copy(run_dir / figure, figures / figure)
-            runs.append(compute_metrics(result))
+            runs.append(result.metrics)
         for j, axis in enumerate(AXES):
             unit = UNITS[j]
 

@@ -23,12 +23,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bwr_twin.errors import BwrError
+from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 
 if TYPE_CHECKING:
+    from bwr_twin.config.scene import Scene
     from bwr_twin.replay.recording import Recording
-    from bwr_twin.scene import Scene
 
-DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "scenes" / "paper_individual_gains.toml"
 
 
 def _port(text: str) -> int:
@@ -101,15 +101,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def _open(source: Path, *, use_cache: bool) -> tuple[Recording | None, Scene | None]:
     """(recording, None) for a run directory or a cached scene run, else (None, scene)."""
+    from bwr_twin.config.scene import load_scene
     from bwr_twin.replay.recording import Recording
     from bwr_twin.replay.simulation import cached_run
-    from bwr_twin.scene import load_scene
 
     if source.is_dir():
         return Recording.from_run_dir(source), None
-    if not source.exists():
-        raise BwrError(f"{source}: no such scene file or run directory")
-    scene = load_scene(source)
+    scene = load_scene(find_scene(source))
     cached = cached_run(scene)
     if use_cache and cached.is_dir():
         return Recording.from_run_dir(cached), None

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.machine import AXES
+from bwr_twin.model.machine import AXES
 from bwr_twin.replay.recording import Recording, decimate
 
 CHART_STEP = 1.0  # s between chart points: 701 for the paper's reclaim

@@ -19,7 +19,7 @@ from bwr_twin.errors import BwrError
 from bwr_twin.replay import readout
 from bwr_twin.replay.recording import Recording
 from bwr_twin.replay.view import SceneView
-from bwr_twin.results import write_atomically
+from bwr_twin.results.rundir import write_atomically
 
 EXPORT_SPEED = 10.0  # x real time
 EXPORT_FRAME_RATE = 25.0  # frames per second of playback: smooth at 10x

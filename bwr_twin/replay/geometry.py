@@ -14,9 +14,9 @@ import mujoco
 import numpy as np
 
 from bwr_twin.errors import ModelError
-from bwr_twin.machine import Machine
+from bwr_twin.model.machine import Machine
 
-VISUAL_GROUP = 2  # the model contract's group of visual geoms (DESIGN.md)
+VISUAL_GROUP = 2  # the model contract's group of visual geoms (docs/contracts.md)
 MUJOCO_DEFAULT_RGBA = (0.5, 0.5, 0.5, 1.0)  # a geom rgba equal to this defers to its material
 ROUND_SEGMENTS = 24  # facets around cylinders, capsules and spheres
 INFINITE_PLANE_HALF_SIZE = 500.0  # m, drawn extent of a plane whose MJCF size is 0 (infinite)

@@ -4,7 +4,7 @@ export, which cannot record GUI elements, shows the same text as a scene label."
 
 from __future__ import annotations
 
-from bwr_twin.machine import AXES, UNITS, to_display
+from bwr_twin.model.machine import AXES, UNITS, to_display
 from bwr_twin.replay.recording import Instant
 
 VALUE_DECIMALS = 3  # mm of travel, thousandths of a degree

@@ -18,14 +18,16 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
-from bwr_twin.machine import AXES, Machine, paper_to_world
-from bwr_twin.scene import Scene
+from bwr_twin.model.machine import AXES, Machine, paper_to_world
+from bwr_twin.shipped import PACKAGE
 
 if TYPE_CHECKING:
-    from bwr_twin.simulate import RunResult
+    from bwr_twin.results.record import RunResult
 
-_SIMULATION_SOURCES = Path(__file__).resolve().parents[1]  # bwr_twin/, whose code decides a run
+# The sub-packages whose code decides a run (the replay's own code does not).
+_SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "results"))
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,7 @@ class Plan:
     @classmethod
     def from_scene(cls, scene: Scene) -> Plan:
         """Plan the scene's path (inverse kinematics and cubics only, no simulation)."""
-        from bwr_twin.trajectory import Trajectory
+        from bwr_twin.planning.trajectory import Trajectory
 
         machine = Machine(scene.machine.mjcf)
         try:
@@ -83,7 +85,7 @@ class Instant:
 
     @property
     def q_error(self) -> np.ndarray:
-        """Desired minus actual (the sign of DESIGN.md's metrics)."""
+        """Desired minus actual (the sign of the metrics, docs/contracts.md)."""
         return self.q_desired - self.q_actual
 
 
@@ -98,7 +100,7 @@ class Recording:
 
     @property
     def q_error(self) -> np.ndarray:
-        """Desired minus actual, (n, 3) in m, rad, rad (the sign of DESIGN.md's metrics)."""
+        """Desired minus actual, (n, 3) in m, rad, rad (the sign of the metrics, docs/contracts.md)."""
         return self.plan.q_desired - self.q_actual
 
     @property
@@ -126,7 +128,7 @@ class Recording:
     @classmethod
     def from_run_dir(cls, run_dir: str | Path) -> Recording:
         """Read a run directory written by `python -m bwr_twin.run` (or `results.write_run`)."""
-        from bwr_twin.results import SCENE_FILE, TIMESERIES_FILE, read_timeseries
+        from bwr_twin.results.rundir import SCENE_FILE, TIMESERIES_FILE, read_timeseries
 
         run_dir = Path(run_dir)
         missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
@@ -146,8 +148,8 @@ class Recording:
 
     @classmethod
     def from_result(cls, result: RunResult) -> Recording:
-        """Sample a `bwr_twin.simulate.RunResult` at its record period, as its run directory would hold it."""
-        from bwr_twin.results import timeseries_columns
+        """A `RunResult` as its run directory would hold it."""
+        from bwr_twin.results.rundir import timeseries_columns
 
         names, values = timeseries_columns(result)
         columns = dict(zip(names, values.T))
@@ -159,7 +161,7 @@ class Recording:
     def _from_columns(
         cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str
     ) -> Recording:
-        from bwr_twin.results import column_name
+        from bwr_twin.results.rundir import column_name
 
         def joints(stem: str) -> np.ndarray:
             return np.column_stack([columns[column_name(stem, j)] for j in range(len(AXES))])
@@ -204,6 +206,6 @@ def cache_key(scene: Scene) -> str:
         mujoco.mj_saveModel(model, None, compiled)
         digest.update(compiled.tobytes())
     digest.update(Path(scene.controller.rule_base).read_bytes())
-    for source in sorted(_SIMULATION_SOURCES.glob("*.py")):
+    for source in sorted(path for folder in _SIMULATION_CODE for path in folder.rglob("*.py")):
         digest.update(source.read_bytes())
     return digest.hexdigest()[:16]

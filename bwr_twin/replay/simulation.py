@@ -19,9 +19,9 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
 from bwr_twin.replay.recording import Recording, cache_key
-from bwr_twin.scene import Scene
 
 CACHE_ROOT = Path("out") / "replay-cache"  # relative to the current folder, as `--out` paths are
 SIMULATION_NICENESS = 10  # the page is drawn first; the simulation takes the CPU that is left
@@ -75,8 +75,8 @@ def simulate_in_child(
 def _simulate_into(scene: Scene, run_dir: str, reports: Connection) -> None:
     """In the child process: simulate, write the run directory (no plots) and report back
     ("progress", share done), then ("done", None) or ("error", one-line message)."""
-    from bwr_twin.results import write_run  # here, not at the top: the parent never simulates
-    from bwr_twin.simulate import simulate
+    from bwr_twin.results.rundir import write_run  # here, not at the top: the parent never simulates
+    from bwr_twin.sim.lockstep import simulate
 
     try:
         result = simulate(scene, progress=lambda done, total: reports.send(("progress", done / total)))

@@ -57,6 +57,8 @@ class SimulationSection:
 @dataclass(frozen=True)
 class EncoderSection:
     resolution: Vec3  # m, rad, rad
+    velocity_source: Literal["true", "encoder"] = "true"  # the plant's joint velocity, or estimated
+    velocity_filter: float = 0.05  # s, time constant of the encoder velocity estimate
 
 
 @dataclass(frozen=True)
@@ -72,8 +74,6 @@ class ControllerSection:
     input_scale_ec: float
     output_gain: Vec3
     acceleration_feedforward: bool = False
-    velocity_source: Literal["true", "encoder"] = "true"
-    velocity_filter: float = 0.05  # s, time constant of the encoder velocity estimate
 
 
 @dataclass(frozen=True)
@@ -214,10 +214,20 @@ def _set_dotted(raw: dict, dotted: str, value: Any, path: Path) -> None:
     node[key] = copy.deepcopy(value)
 
 
+# Keys that have moved: old dotted key -> new dotted key.
+MOVED_KEYS = {
+    "controller.velocity_source": "encoders.velocity_source",
+    "controller.velocity_filter": "encoders.velocity_filter",
+}
+
+
 def _build(cls: type, table: Any, path: Path, where: str) -> Any:
     """Build dataclass `cls` from a TOML table, checking keys and types."""
     if not isinstance(table, dict):
         raise SceneError(f"{path}: [{where}] must be a table")
+    for key in table:
+        if _join(where, key) in MOVED_KEYS:
+            raise SceneError(f"{path}: '{_join(where, key)}' has moved: write it as '{MOVED_KEYS[_join(where, key)]}'")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     shown = {_TABLES.get(n, n): n for n in fields}
@@ -301,7 +311,7 @@ def _check_rules(scene: Scene) -> None:
     positive("disturbance.hold_time", scene.disturbance.hold_time)
     positive("controller.input_scale_e", scene.controller.input_scale_e)
     positive("controller.input_scale_ec", scene.controller.input_scale_ec)
-    positive("controller.velocity_filter", scene.controller.velocity_filter)
+    positive("encoders.velocity_filter", scene.encoders.velocity_filter)
     positive("plant.gust_hold_time", scene.plant.gust_hold_time)
     for key, vec in (
         ("encoders.resolution", scene.encoders.resolution),
@@ -318,12 +328,12 @@ def _check_rules(scene: Scene) -> None:
     for key, value in (("plant.gust_amplitude", scene.plant.gust_amplitude), ("plant.wind_speed", scene.plant.wind_speed), ("plant.air_density", scene.plant.air_density)):
         if value < 0:
             raise SceneError(f"{p}: '{key}' must be >= 0, got {value}")
-    for period in ("control_period", "record_period"):
-        ratio = getattr(sim, period) / sim.timestep
+    for period, unit in (("control_period", "timestep"), ("record_period", "control_period")):
+        ratio = getattr(sim, period) / getattr(sim, unit)
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise SceneError(
                 f"{p}: 'simulation.{period}' ({getattr(sim, period)} s) must be a whole multiple of "
-                f"'simulation.timestep' ({sim.timestep} s)"
+                f"'simulation.{unit}' ({getattr(sim, unit)} s)"
             )
     via = scene.trajectory.via_points
     if len(via) < 2:

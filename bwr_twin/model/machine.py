@@ -1,4 +1,4 @@
-"""A reclaimer loaded from any MJCF file that meets the model contract (DESIGN.md).
+"""A reclaimer loaded from any MJCF file that meets the model contract (docs/contracts.md).
 
 Everything the kinematics needs (where the slew axis stands, where the luff pivot sits, how far
 out the bucket wheel centre CP is) is read from the compiled model at q = 0, and the operating
@@ -14,12 +14,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
+from bwr_twin.model.spec import Edits, Payload, compile_model
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
@@ -28,15 +28,6 @@ ENVELOPE_KEY = "envelope_{axis}"
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
-_POINT_INERTIA = 1e-6  # kg m^2: a point mass, as MuJoCo needs a positive inertia
-
-
-class Payload(Protocol):
-    """A point mass (kg) at `pos` (m) in the frame of the body named `body`."""
-
-    body: str
-    mass: float
-    pos: tuple[float, float, float]
 
 
 def to_display(axis_index: int, value):
@@ -88,25 +79,8 @@ class Machine:
         """Compile `path`, adding each payload as a point mass on its body (what the plant
         carries and the file does not say, e.g. ore caked on the bucket wheel)."""
         self.path = Path(path)
-        if not self.path.is_file():
-            raise ModelError(f"{self.path}: MJCF file not found")
-        try:
-            spec = mujoco.MjSpec.from_file(str(self.path))
-            for i, payload in enumerate(payloads):
-                body = spec.body(payload.body)
-                if body is None:
-                    raise ModelError(f"{self.path}: payload {i + 1} names a body '{payload.body}' that the model lacks")
-                body.add_body(
-                    name=f"payload_{i + 1}",
-                    pos=list(payload.pos),
-                    mass=payload.mass,
-                    inertia=[_POINT_INERTIA] * 3,
-                    explicitinertial=True,
-                )
-            self.model = spec.compile()
-        except ValueError as exc:
-            first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
-            raise ModelError(f"{self.path}: MuJoCo cannot compile it: {first_line}") from None
+        self.payloads = tuple(payloads)
+        self.model = compile_model(self.path, Edits(payloads=self.payloads))
         self.joint_ids = self._check_joints()
         self.actuator_ids = self._check_actuators()
         self.cp_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, CP_SITE)
@@ -121,6 +95,21 @@ class Machine:
         )
         self.envelope = self._read_envelope()
         self.drive_limits = self._drive_limits()
+
+    def physics_model(self, timestep: float | None = None) -> mujoco.MjModel:
+        """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
+
+        Raises ModelError if deleting the visual geoms changed a mass or an inertia: the model
+        contract keeps masses in `<inertial>`.
+        """
+        model = compile_model(self.path, Edits(payloads=self.payloads, timestep=timestep, physics_only=True))
+        for field in ("body_mass", "body_inertia", "body_ipos"):
+            if not np.array_equal(getattr(model, field), getattr(self.model, field)):
+                raise ModelError(
+                    f"{self.path}: its visual geoms change '{field}': give every body an <inertial> "
+                    "and the visual geoms no mass (model contract)"
+                )
+        return model
 
     # -- contract ---------------------------------------------------------------------------
 

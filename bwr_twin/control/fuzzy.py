@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from bwr_twin.rulebase import RuleBase
+from bwr_twin.control.rulebase import RuleBase
 
 # skfuzzy is imported where it is used: its import pulls in scipy and networkx (~1 s), which
 # runs that only load a cached surface never need.

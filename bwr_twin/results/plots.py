@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure  # no pyplot: no global state, no display backend
 
-from bwr_twin.machine import AXES, UNITS, world_to_paper
-from bwr_twin.simulate import RunResult
+from bwr_twin.model.machine import AXES, UNITS, world_to_paper
+from bwr_twin.results.record import RunResult
 
 _DEG = (1.0, 180 / np.pi, 180 / np.pi)
 

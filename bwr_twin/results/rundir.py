@@ -1,11 +1,11 @@
 """What a run leaves behind: metrics, a self-describing time series and the run's settings,
 written into a directory that appears only when complete.
 
-Layout of a run directory (the output contract of DESIGN.md, plus more):
+Layout of a run directory (the output contract of docs/contracts.md, plus more):
     metrics.json      per-axis error maxima (signed), their times, RMS, drive saturation
     timeseries.csv    every signal at the record period; units in the column names
     scene.json        the resolved scene, so the run can be replayed without its files' paths
-    *.png             the paper's figures for this run (bwr_twin.plots)
+    *.png             the paper's figures for this run (bwr_twin.results.plots)
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import BwrError
-from bwr_twin.machine import AXES, UNITS, to_display
-from bwr_twin.simulate import RunResult
+from bwr_twin.model.machine import AXES
+from bwr_twin.results.record import RunResult
 
 METRICS_FILE = "metrics.json"
 TIMESERIES_FILE = "timeseries.csv"
@@ -63,80 +63,20 @@ def column_name(stem: str, axis: int) -> str:
     return f"{AXES[axis]}_{stem}_{_SI_UNITS[_KIND[stem]][axis]}"
 
 
-def _signed_max(x: np.ndarray) -> tuple[float, int]:
-    """The value of largest magnitude, sign kept, and its index."""
-    i = int(np.argmax(np.abs(x)))
-    return float(x[i]), i
-
-
-def compute_metrics(result: RunResult) -> dict:
-    """Per-axis error figures (error = desired - actual) in SI units, per DESIGN.md."""
-    limits = result.machine.drive_limits
-    metrics: dict = {}
-    for j, axis in enumerate(AXES):
-        e = result.q_desired[:, j] - result.q[:, j]
-        ev = result.qd_desired[:, j] - result.qd[:, j]
-        ea = result.qdd_desired[:, j] - result.qdd[:, j]
-        pos_max, i = _signed_max(e)
-        vel_max, iv = _signed_max(ev)
-        acc_max, ia = _signed_max(ea)
-        command = result.drive_force_command[:, j]
-        metrics[axis] = {
-            "position_error_max": pos_max,
-            "position_error_max_time": float(result.time[i]),
-            "velocity_error_max": vel_max,
-            "velocity_error_max_time": float(result.time[iv]),
-            "acceleration_error_max": acc_max,
-            "acceleration_error_max_time": float(result.time[ia]),
-            "position_error_rms": float(np.sqrt(np.mean(e**2))),
-            "position_error_final": float(e[-1]),
-            "drive_force_max": _signed_max(result.drive_force[:, j])[0],
-            "drive_force_rms": float(np.sqrt(np.mean(result.drive_force[:, j] ** 2))),
-            "drive_limit": [float(limits[j, 0]), float(limits[j, 1])] if np.isfinite(limits[j]).any() else None,
-            "saturation_fraction": float(np.mean((command < limits[j, 0]) | (command > limits[j, 1]))),
-        }
-    cp_error = np.linalg.norm(result.cp_desired - result.cp, axis=1)
-    k = int(np.argmax(cp_error))
-    metrics["cp_error_max"] = float(cp_error[k])
-    metrics["cp_error_max_time"] = float(result.time[k])
-    scene = result.scene
-    metrics["units"] = {
-        "travel": "m, m/s, m/s^2, N",
-        "slew": "rad, rad/s, rad/s^2, N m",
-        "luff": "rad, rad/s, rad/s^2, N m",
-        "cp_error_max": "m",
-        "times": "s",
-    }
-    metrics["run"] = {
-        "scene": str(scene.path),
-        "mjcf": str(scene.machine.mjcf),
-        "controller_mjcf": str(scene.controller_mjcf),
-        "seed": scene.simulation.seed,
-        "duration": result.trajectory.duration,
-        "control_period": scene.simulation.control_period,
-        "timestep": scene.simulation.timestep,
-    }
-    return metrics
-
-
 def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
     """Column names (with units) and values of the recorded time series, at the record period."""
-    every = max(1, round(result.scene.simulation.record_period / result.scene.simulation.control_period))
-    rows = np.arange(0, len(result.time), every)
-    if rows[-1] != len(result.time) - 1:
-        rows = np.append(rows, len(result.time) - 1)  # always keep the last sample
-    names, columns = ["time_s"], [result.time[rows]]
+    names, columns = ["time_s"], [result.time]
     for stem, attribute, _ in _SIGNALS:
         values = getattr(result, attribute)
         for j in range(len(AXES)):
             names.append(column_name(stem, j))
-            columns.append(values[rows, j])
+            columns.append(values[:, j])
     for label, cp in (("desired", result.cp_desired), ("actual", result.cp)):
         for c, coordinate in enumerate("xyz"):
             names.append(f"cp_{label}_{coordinate}_m")
-            columns.append(cp[rows, c])
+            columns.append(cp[:, c])
     names.append("wind_speed_m/s")
-    columns.append(result.wind_speed[rows])
+    columns.append(result.wind_speed)
     return names, np.column_stack(columns)
 
 
@@ -147,27 +87,6 @@ def read_timeseries(path: str | Path) -> dict[str, np.ndarray]:
         names = f.readline().strip().split(",")
     values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     return {name: values[:, i] for i, name in enumerate(names)}
-
-
-def summary_table(metrics: dict) -> str:
-    """The maximum errors with their times, in engineering units (m, deg)."""
-    lines = [
-        f"{'axis':<7} {'position error max':>24} {'velocity error max':>26} {'acceleration error max':>30} {'pos. RMS':>12}"
-    ]
-    for j, axis in enumerate(AXES):
-        m = metrics[axis]
-        lines.append(
-            f"{axis:<7} {_largest(m, j, 'position', ''):>24} {_largest(m, j, 'velocity', '/s'):>26} "
-            f"{_largest(m, j, 'acceleration', '/s^2'):>30} {to_display(j, m['position_error_rms']):>9.4g} {UNITS[j]}"
-        )
-    lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
-    return "\n".join(lines)
-
-
-def _largest(axis_metrics: dict, j: int, kind: str, per: str) -> str:
-    """'+0.01812 m @ 204.1 s': the largest error of one kind, in engineering units, and its time."""
-    value, time = axis_metrics[f"{kind}_error_max"], axis_metrics[f"{kind}_error_max_time"]
-    return f"{to_display(j, value):+.4g} {UNITS[j]}{per} @ {time:5.1f} s"
 
 
 def _umask() -> int:
@@ -223,14 +142,14 @@ def write_run(
     plots: bool = True,
 ) -> dict:
     """Write a run directory atomically; returns the metrics."""
-    metrics = compute_metrics(result)
+    metrics = result.metrics
     with staged_directory(Path(out_dir), overwrite=overwrite) as staging:
         names, values = timeseries_columns(result)
         np.savetxt(staging / TIMESERIES_FILE, values, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
         (staging / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n")
         (staging / SCENE_FILE).write_text(json.dumps(result.scene.to_dict(), indent=2) + "\n")
         if plots:
-            from bwr_twin.plots import save_run_figures
+            from bwr_twin.results.plots import save_run_figures
 
             save_run_figures(result, staging)
     return metrics

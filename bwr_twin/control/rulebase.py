@@ -1,7 +1,7 @@
 """The fuzzy rule base as data (paper Sec. 3, Table 2), read from a TOML file and checked.
 
 The file under scenes/rulebases/ names the sets, the rule table and the universes, each number
-with its source; `RuleBase.digest()` keys the cached control surface of bwr_twin.fuzzy.
+with its source; `RuleBase.digest()` keys the cached control surface of bwr_twin.control.fuzzy.
 """
 
 from __future__ import annotations
@@ -16,16 +16,17 @@ from typing import Any
 
 import numpy as np
 
+from bwr_twin.config.scene import is_number
 from bwr_twin.errors import SceneError
-from bwr_twin.scene import is_number
+from bwr_twin.shipped import RULE_BASES
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-PAPER_RULES = Path(__file__).resolve().parents[1] / "scenes" / "rulebases" / "paper_table2.toml"
-_DIGEST_SCHEMA = "bwr_twin.fuzzy.RuleBase/1"
+PAPER_RULES = RULE_BASES / "paper_table2.toml"
+_DIGEST_SCHEMA = "bwr_twin.control.fuzzy.RuleBase/1"
 
 _KEYS: dict[str, set[str] | None] = {
     "sets": None,

@@ -1,0 +1,170 @@
+"""The closed loop for many runs at once: trajectory -> encoders -> controller -> plant, one
+control period at a time, every signal a (runs, 3) array.
+
+A lockstep is a group of runs of one machine, path, rule base and timing; what may differ
+between its runs (seeds, gains, input scales, encoders, disturbances, friction loss, wind) is
+per-run data. `lockstep_key` says which runs may share a lockstep. A single run is a lockstep of
+one: `simulate(scene)` is `simulate_lockstep([scene])[0]`, and a run's result does not depend
+on which runs share its lockstep.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.control.belief import Belief
+from bwr_twin.control.controller import FuzzyModelController
+from bwr_twin.control.fuzzy import FuzzySurface
+from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
+from bwr_twin.model.machine import Machine
+from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.results.metrics import OnlineMetrics
+from bwr_twin.results.record import Recorder, RunResult
+from bwr_twin.sim.disturbances import Disturbances
+from bwr_twin.sim.encoders import Encoders
+from bwr_twin.sim.plant import Plant, mujoco_warnings
+
+HEALTH_CHECK_EVERY = 100  # control periods between checks for divergence, and progress reports
+
+Progress = Callable[[float, float], None]
+
+
+def lockstep_key(scene: Scene) -> tuple:
+    """What the runs of one lockstep share: the compiled models, the path, the rule base, the timing."""
+    sim = scene.simulation
+    return (
+        str(scene.machine.mjcf),
+        scene.plant.payload,
+        str(scene.controller_mjcf),
+        scene.trajectory,
+        str(scene.controller.rule_base),
+        sim.timestep,
+        sim.control_period,
+        sim.record_period,
+    )
+
+
+def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0) -> RunResult:
+    """Run one scene headless. Raises BwrError subclasses on bad input or divergence.
+
+    `progress(done, total)`, if given, hears how many of the path's seconds are simulated, about
+    once a simulated second.
+    """
+    (result,) = simulate_lockstep([scene], progress=progress, nthread=nthread)
+    if isinstance(result, BwrError):
+        raise result
+    return result
+
+
+def simulate_lockstep(
+    scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0
+) -> list[RunResult | SimulationError]:
+    """Run scenes that share a `lockstep_key` together, on `nthread` threads (0: all cores).
+
+    Returns one RunResult per scene, in order, or the SimulationError of a run that diverged
+    (the others go on). Raises BwrError if the path or a model is bad: that fails every run.
+    """
+    if len({lockstep_key(s) for s in scenes}) != 1:
+        raise ValueError("the scenes of a lockstep must share their lockstep_key")
+    scene = scenes[0]
+    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+    belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
+    try:
+        trajectory = Trajectory.plan(scene.trajectory, machine)
+    except (UnreachableError, EnvelopeError) as exc:
+        raise type(exc)(f"{scene.path}: {exc}") from None
+    surface = FuzzySurface.load(RuleBase.from_toml(scene.controller.rule_base))
+
+    runs = len(scenes)
+    period = scene.simulation.control_period
+    samples = round(trajectory.duration / period) + 1
+    time = trajectory.times[0] + np.arange(samples) * period
+    q_desired, qd_desired, qdd_desired = trajectory.sample(time)
+    cp_desired = machine.fk(q_desired)
+
+    plant = Plant(machine, scenes, q0=trajectory.knots[0], nthread=nthread)
+    encoders = Encoders([s.encoders for s in scenes], period, trajectory.knots[0])
+    controller = FuzzyModelController(
+        Belief(belief_machine, runs, nthread=nthread), [s.controller for s in scenes], surface
+    )
+    disturbances = Disturbances(scenes, period)
+    recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
+    metrics = OnlineMetrics(runs, machine.drive_limits)
+    signals = recorder.signals
+
+    wind_mean = np.array([s.plant.wind_speed for s in scenes])
+    errors_and_forces = np.zeros((runs, 9))
+    position_error = errors_and_forces[:, OnlineMetrics.POSITION]
+    velocity_error = errors_and_forces[:, OnlineMetrics.VELOCITY]
+    applied_force = errors_and_forces[:, OnlineMetrics.FORCE]
+    q, qd, qd_previous = np.zeros((runs, 3)), np.zeros((runs, 3)), np.zeros((runs, 3))
+    with mujoco_warnings():
+        for k in range(samples):
+            np.copyto(q, plant.qpos)
+            np.copyto(qd, plant.qvel)
+            if k:
+                _end_period(k - 1, qd, qd_previous, period, qdd_desired, metrics, recorder)
+            q_measured, qd_measured = encoders.measure(q, qd)
+            command = controller.compute(q_measured, qd_measured, q_desired[k], qd_desired[k],
+                                         qdd_desired[k], plant.alive)
+            disturbance = disturbances.forces.sample(k)
+            gust = disturbances.gusts.sample(k)
+            plant.step(command, disturbance, gust)
+
+            np.subtract(q_desired[k], q, out=position_error)
+            np.subtract(qd_desired[k], qd, out=velocity_error)
+            np.copyto(applied_force, plant.drive_force)
+            metrics.add(k, errors_and_forces, command)
+            row = recorder.row(k)
+            if row >= 0:
+                metrics.add_cp_error(k, np.linalg.norm(cp_desired[k] - machine.fk(q), axis=1))
+                for name, value in (("q_desired", q_desired[k]), ("q", q), ("q_measured", q_measured),
+                                    ("qd_desired", qd_desired[k]), ("qd", qd), ("qd_measured", qd_measured),
+                                    ("qdd_desired", qdd_desired[k]), ("fuzzy_output", controller.fuzzy_output),
+                                    ("acceleration_command", controller.acceleration_command),
+                                    ("drive_force_command", command), ("drive_force", applied_force),
+                                    ("disturbance", disturbance)):
+                    signals[name][row] = value
+                recorder.wind_speed[row] = wind_mean + gust
+            q, qd_previous, qd = qd_previous, qd, q  # reuse the buffers: qd becomes the previous one
+            if k % HEALTH_CHECK_EVERY == HEALTH_CHECK_EVERY - 1:
+                plant.check_health()
+                if progress is not None:
+                    progress((k + 1) * period, trajectory.duration)
+        _end_period(samples - 1, plant.qvel.copy(), qd_previous, period, qdd_desired, metrics, recorder)
+        plant.check_health()
+
+    results: list[RunResult | SimulationError] = []
+    for run, run_scene in enumerate(scenes):
+        if run in plant.failures:
+            results.append(SimulationError(
+                f"{run_scene.path}: the simulation diverged ({plant.failures[run]}); try smaller gains or timestep"
+            ))
+            continue
+        run_metrics = metrics.result(run, time)
+        run_metrics["run"] = {
+            "scene": str(run_scene.path),
+            "mjcf": str(run_scene.machine.mjcf),
+            "controller_mjcf": str(run_scene.controller_mjcf),
+            "seed": run_scene.simulation.seed,
+            "duration": trajectory.duration,
+            "control_period": period,
+            "timestep": run_scene.simulation.timestep,
+        }
+        results.append(recorder.run_result(run, scene=run_scene, machine=machine, trajectory=trajectory,
+                                           time=time, metrics=run_metrics))
+    return results
+
+
+def _end_period(k: int, qd_next: np.ndarray, qd: np.ndarray, period: float, qdd_desired: np.ndarray,
+                metrics: OnlineMetrics, recorder: Recorder) -> None:
+    """Sample k's mean acceleration, known once its period has ended."""
+    qdd = (qd_next - qd) / period
+    metrics.add_acceleration(k, qdd_desired[k] - qdd)
+    row = recorder.row(k)
+    if row >= 0:
+        recorder.signals["qdd"][row] = qdd
