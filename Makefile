@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run test bench bench-replay bench-batch clean
+.PHONY: setup run test test-quick bench bench-replay bench-batch clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ run: setup
 
 test: setup
 	$(PY) -m pytest
+
+test-quick: setup
+	$(PY) -m pytest -m "not slow and not browser"
 
 bench: setup
 	$(PY) tools/bench.py

@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from conftest import HEAVY_MJCF, PAPER_MJCF, ROOT, SHORT_VIA_POINTS, VARIANT_MJCF, write_short_scene
@@ -228,6 +229,35 @@ def test_kill_9_then_rerun_gives_the_uninterrupted_result(short_batch, tmp_path)
     assert f"({len(survivors)} already done, skipped)" in rerun.stdout
     same_results(out, reference)
     assert not debris(out)
+
+
+def session_processes(session):
+    """Live processes of a session (zombies aside), as {pid: command line}."""
+    found = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            cmdline = (stat.parent / "cmdline").read_bytes().replace(b"\0", b" ").decode().strip()
+        except (OSError, IndexError):
+            continue
+        if int(fields[3]) == session and fields[0] != "Z":  # fields after the name: state, ppid, pgrp, session
+            found[int(stat.parent.name)] = cmdline
+    return found
+
+
+def test_kill_9_of_the_batch_leaves_no_worker_running(short_batch, tmp_path):
+    sweep, _, _ = short_batch
+    proc = batch_cli(sweep, "--out", tmp_path / "out", "--workers", 2, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while len(session_processes(proc.pid)) < 3:  # the batch and its two workers
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)  # the batch alone, as an out-of-memory killer would
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while session_processes(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert session_processes(proc.pid) == {}
 
 
 def test_ctrl_c_stops_promptly_and_keeps_only_complete_runs(short_batch, tmp_path):

@@ -1,6 +1,7 @@
 """The fuzzy rule base (paper Sec. 3, Table 2), its skfuzzy definition and the compiled surface."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -8,10 +9,11 @@ from conftest import SCENES
 
 from bwr_twin.control.fuzzy import (
     CACHE_ENV,
-    DEFAULT_GRID_POINTS,
+    TARGET_GRID_POINTS,
     FuzzySurface,
     build_control_system,
     default_cache_dir,
+    default_grid_points,
     skfuzzy_compute,
 )
 from bwr_twin.control.rulebase import PAPER_RULES, RuleBase
@@ -89,14 +91,14 @@ def test_skfuzzy_definition(rule_base):
 
 
 def test_surface_matches_skfuzzy(rule_base, surface):
-    assert surface.values.shape == (DEFAULT_GRID_POINTS, DEFAULT_GRID_POINTS)
+    assert surface.values.shape == (TARGET_GRID_POINTS, TARGET_GRID_POINTS)
     rng = np.random.default_rng(20240611)
     e = rng.uniform(-3.0, 3.0, 1000)
     ec = rng.uniform(-3.0, 3.0, 1000)
     reference = skfuzzy_compute(rule_base, e, ec)  # one compute() call on the arrays
     assert np.abs(surface.evaluate(e, ec) - reference).max() <= 0.01
     # At the grid points the surface is skfuzzy's value itself.
-    k = rng.integers(0, DEFAULT_GRID_POINTS, (2, 50))
+    k = rng.integers(0, TARGET_GRID_POINTS, (2, 50))
     nodes = skfuzzy_compute(rule_base, surface.grid_e[k[0]], surface.grid_ec[k[1]])
     at_nodes = surface.evaluate(surface.grid_e[k[0]], surface.grid_ec[k[1]])
     np.testing.assert_allclose(at_nodes, nodes, atol=1e-12)
@@ -211,6 +213,25 @@ def test_cache_dir_resolution(tmp_path, monkeypatch):
     monkeypatch.delenv("XDG_CACHE_HOME")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     assert default_cache_dir() == tmp_path / "home" / ".cache" / "bwr_twin"
+
+
+@pytest.mark.parametrize("count", [2, 6])
+def test_any_number_of_sets_gets_a_grid_that_fits(count, tmp_path):
+    """An even number of sets once crashed the default grid (145 points fit 7 sets only)."""
+    names = [f"S{i}" for i in range(count)]
+    rows = [[names[min(count - 1, max(0, i + j - count // 2))] for j in range(count)] for i in range(count)]
+    rules = ",\n".join(f"  {json.dumps(row)}" for row in rows)
+    path = tmp_path / "rules.toml"
+    text = PAPER_FILE.read_text()
+    start, end = text.index("sets ="), text.index("[universe]")
+    path.write_text(text[:start] + f"sets = {names}\nrules = [\n{rules},\n]\n\n" + text[end:])
+    rule_base = RuleBase.from_toml(path)
+    points = default_grid_points(rule_base)
+    assert (points - 1) % (2 * (count - 1)) == 0 and abs(points - TARGET_GRID_POINTS) <= count
+    surface = FuzzySurface.load(rule_base, cache_dir=tmp_path)
+    assert surface.values.shape == (points, points)
+    e, ec = np.array([-2.9, -0.7, 0.0, 1.3]), np.array([2.1, -0.2, 0.0, -2.8])
+    np.testing.assert_allclose(surface.evaluate(e, ec), skfuzzy_compute(rule_base, e, ec), atol=0.02)
 
 
 def test_grid_points_must_fit_the_sets(rule_base, tmp_path):

@@ -287,14 +287,40 @@ def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, shor
     assert velocity.series[2]["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel [m/s]"
 
 
-def test_cache_key_follows_what_decides_the_run(short_scene):
+def test_cache_key_follows_what_decides_the_run(short_scene, tmp_path, monkeypatch):
+    """The seed, the MJCF's content, the rule base's content and the simulation code each change
+    the key; where the scene file lives does not."""
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.replay import recording
 
-    same = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})
-    reseeded = load_scene(
-        SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS, "simulation.seed": 2}
-    )
-    assert cache_key(same) == cache_key(short_scene) != cache_key(reseeded)
+    def scene(**overrides):
+        return load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS, **overrides})
+
+    key = cache_key(short_scene)
+    assert cache_key(scene()) == key
+    moved = tmp_path / "moved.toml"
+    moved.write_text(f'extends = "{SCENES / "paper_individual_gains.toml"}"\n')
+    assert cache_key(load_scene(moved, {"path.via_points": SHORT_VIA_POINTS})) == key
+    assert cache_key(scene(**{"simulation.seed": 2})) != key
+
+    heavier = tmp_path / "bwr.xml"  # the same file name, one mass changed
+    heavier.write_text(PAPER_MJCF.read_text().replace('mass="2000"', 'mass="2100"', 1))
+    assert heavier.read_text() != PAPER_MJCF.read_text()
+    assert cache_key(scene(**{"machine.mjcf": str(heavier)})) != key
+
+    rules = tmp_path / "rules.toml"
+    text = (SCENES / "rulebases" / "paper_table2.toml").read_text()
+    rules.write_text(text.replace('["NM", "NS", "NS", "O",  "PS", "PS", "PM"]', '["NM", "NS", "NS", "PS", "PS", "PS", "PM"]'))
+    assert rules.read_text() != text
+    assert cache_key(scene(**{"controller.rule_base": str(rules)})) != key
+
+    code = tmp_path / "code"
+    code.mkdir()
+    (code / "loop.py").write_text("STEP = 1\n")
+    monkeypatch.setattr(recording, "_SIMULATION_CODE", (code,))
+    before = cache_key(short_scene)
+    (code / "loop.py").write_text("STEP = 2\n")
+    assert cache_key(short_scene) != before
 
 
 # -- the server -------------------------------------------------------------------------------

@@ -53,6 +53,10 @@ def test_overrides_are_validated_like_the_file():
         ('mjcf = "../mjcf/bwr.xml"', 'mjcf = "../mjcf/nowhere.xml"', r"'machine.mjcf' names a file that does not exist: .*nowhere.xml"),
         ("[encoders]\n", "", r"edited.toml: unknown key 'simulation.resolution'"),
         ("velocity_source = \"true\"", "velocity_source = true", r"'encoders.velocity_source' must be one of"),
+        ("acceleration_feedforward = false", 'acceleration_feedforward = false\nvelocity_filter = 0.1',
+         r"'controller.velocity_filter' has moved: write it as 'encoders.velocity_filter'"),
+        ("record_period = 0.1", "record_period = 0.015",
+         r"'simulation.record_period' \(0.015 s\) must be a whole multiple of 'simulation.control_period' \(0.01 s\)"),
     ],
 )
 def test_bad_scene_names_file_key_and_rule(tmp_path, old, new, message):

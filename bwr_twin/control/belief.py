@@ -27,7 +27,7 @@ class Belief:
 
     def __init__(self, machine: Machine, runs: int, *, nthread: int = 0):
         self.machine = machine
-        model = machine.physics_model()
+        model = machine.physics_model(rigid_body_only=True)
         self._batch = batch = Batch(model, runs, nthread=nthread)
         self._qpos = batch.bind("qpos")
         self._qvel = batch.bind("qvel")

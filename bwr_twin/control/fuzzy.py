@@ -37,7 +37,7 @@ from bwr_twin.control.rulebase import RuleBase
 # skfuzzy is imported where it is used: its import pulls in scipy and networkx (~1 s), which
 # runs that only load a cached surface never need.
 
-DEFAULT_GRID_POINTS = 145  # 24 cells per set spacing for 7 sets: step 0.04167 on [-3, 3]
+TARGET_GRID_POINTS = 145  # about this many per input: for 7 sets, 24 cells per set spacing (0.0417 on [-3, 3])
 CACHE_ENV = "BWR_TWIN_CACHE"
 _CACHE_FORMAT = 1  # bump when what the cache file holds, or how it is computed, changes
 _SMALL = 16  # evaluate() hands 1-D calls up to this size with an `out` to the scalar fast path
@@ -164,6 +164,7 @@ class FuzzySurface:
         self._scale_e = m / (rule_base.e_range[1] - rule_base.e_range[0])
         self._scale_ec = m / (rule_base.ec_range[1] - rule_base.ec_range[0])
         self._coef = self._triangle_coefficients()  # (m * m * 4, 3): a, b, c of a + b s + c t
+        self._coef_columns = tuple(np.ascontiguousarray(self._coef[:, k]) for k in range(3))
         # The fast path reads plain Python floats: indexing a list of tuples beats numpy scalars.
         self._coef_list = list(map(tuple, self._coef.tolist()))
         self._fast = (self._e0, self._scale_e, self._ec0, self._scale_ec, m, 4 * m, self._coef_list)
@@ -193,7 +194,7 @@ class FuzzySurface:
         rule_base: RuleBase,
         *,
         cache_dir: str | Path | None = None,
-        grid_points: int = DEFAULT_GRID_POINTS,
+        grid_points: int | None = None,
     ) -> FuzzySurface:
         """The surface from the cache, or computed with skfuzzy (about 15 s) and cached.
 
@@ -203,6 +204,8 @@ class FuzzySurface:
         only costs the rebuild next time (a warning says so).
         """
         step = 2 * (len(rule_base.sets) - 1)
+        if grid_points is None:
+            grid_points = default_grid_points(rule_base)
         if grid_points < step + 1 or (grid_points - 1) % step:
             raise ValueError(
                 f"grid_points must be k * {step} + 1 (k >= 1) so that the surface's kinks fall on grid "
@@ -252,26 +255,29 @@ class FuzzySurface:
         shape = np.broadcast_shapes(e.shape, ec.shape)
         if out is not None and out.shape != shape:
             raise ValueError(f"out has shape {out.shape}, the inputs broadcast to {shape}")
+        if e.shape != ec.shape:
+            e, ec = np.broadcast_arrays(e, ec)
         m = self._m
-        u = np.empty(shape)
-        v = np.empty(shape)
-        np.multiply(e - self._e0, self._scale_e, out=u)
-        np.multiply(ec - self._ec0, self._scale_ec, out=v)
-        nan = np.isnan(u) | np.isnan(v)
-        has_nan = bool(nan.any())
-        if has_nan:
-            u[nan] = 0.0
-            v[nan] = 0.0
-        np.clip(u, 0.0, m, out=u)
-        np.clip(v, 0.0, m, out=v)
+        u = np.asarray((e - self._e0) * self._scale_e)  # asarray: 0-d inputs give numpy scalars
+        v = np.asarray((ec - self._ec0) * self._scale_ec)
+        # NaN in gives NaN out; a minimum is NaN if any value is, and cheaper than a mask.
+        nan = np.isnan(u) | np.isnan(v) if np.isnan(u.min()) or np.isnan(v.min()) else None
+        np.fmin(np.fmax(u, 0.0, out=u), m, out=u)  # saturate at the universe ends; NaN becomes 0
+        np.fmin(np.fmax(v, 0.0, out=v), m, out=v)
         i = np.minimum(u.astype(np.intp), m - 1)
         j = np.minimum(v.astype(np.intp), m - 1)
         s = u - i
         t = v - j
-        q = 4 * (i * m + j) + 2 * (s < t) + (s + t >= 1.0)
-        coef = self._coef[q]
-        result = coef[..., 0] + coef[..., 1] * s + coef[..., 2] * t
-        if has_nan:
+        q = i * m
+        q += j
+        q *= 4
+        q += 2 * (s < t)
+        q += (s + t) >= 1.0
+        a, b, c = self._coef_columns
+        result = np.take(a, q)
+        result += np.take(b, q) * s
+        result += np.take(c, q) * t
+        if nan is not None:
             result[nan] = np.nan
         if out is None:
             return result
@@ -319,10 +325,16 @@ class FuzzySurface:
         return out
 
 
-def compute_grid(
-    rule_base: RuleBase, grid_points: int = DEFAULT_GRID_POINTS
-) -> tuple[np.ndarray, np.ndarray]:
+def default_grid_points(rule_base: RuleBase) -> int:
+    """The grid size nearest TARGET_GRID_POINTS that puts every kink of the surface on grid lines
+    and cell diagonals: k * 2 * (sets - 1) + 1 points, for any number of sets."""
+    step = 2 * (len(rule_base.sets) - 1)
+    return max(1, round((TARGET_GRID_POINTS - 1) / step)) * step + 1
+
+
+def compute_grid(rule_base: RuleBase, grid_points: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """skfuzzy's output on the grid points and at the cell centres, in one compute() call."""
+    grid_points = grid_points or default_grid_points(rule_base)
     ge = np.linspace(*rule_base.e_range, grid_points)
     gec = np.linspace(*rule_base.ec_range, grid_points)
     ce = 0.5 * (ge[:-1] + ge[1:])

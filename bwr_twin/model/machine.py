@@ -96,13 +96,15 @@ class Machine:
         self.envelope = self._read_envelope()
         self.drive_limits = self._drive_limits()
 
-    def physics_model(self, timestep: float | None = None) -> mujoco.MjModel:
+    def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
 
-        Raises ModelError if deleting the visual geoms changed a mass or an inertia: the model
-        contract keeps masses in `<inertial>`.
+        `rigid_body_only` leaves only what M and the bias forces need (`Edits`). Raises
+        ModelError if deleting the visual geoms changed a mass or an inertia: the model contract
+        keeps masses in `<inertial>`.
         """
-        model = compile_model(self.path, Edits(payloads=self.payloads, timestep=timestep, physics_only=True))
+        edits = Edits(payloads=self.payloads, timestep=timestep, physics_only=True, rigid_body_only=rigid_body_only)
+        model = compile_model(self.path, edits)
         for field in ("body_mass", "body_inertia", "body_ipos"):
             if not np.array_equal(getattr(model, field), getattr(self.model, field)):
                 raise ModelError(

@@ -39,11 +39,28 @@ class Edits:
         timestep: the physics timestep in s; None keeps the file's.
         physics_only: delete every geom that has no contacts and meets no fluid (the visual
             ones), keeping the wind areas of MuJoCo's ellipsoid fluid model.
+        rigid_body_only: switch off what M and the bias forces do not need (constraints,
+            contacts, joint limits, friction loss, springs, dampers, actuation, sensors): the
+            controller's belief asks for nothing else.
     """
 
     payloads: Sequence[Payload] = ()
     timestep: float | None = None
     physics_only: bool = False
+    rigid_body_only: bool = False
+
+
+_RIGID_BODY_ONLY = (
+    mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    | mujoco.mjtDisableBit.mjDSBL_CONTACT
+    | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    | mujoco.mjtDisableBit.mjDSBL_EQUALITY
+    | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+    | mujoco.mjtDisableBit.mjDSBL_SPRING
+    | mujoco.mjtDisableBit.mjDSBL_DAMPER
+    | mujoco.mjtDisableBit.mjDSBL_ACTUATION
+    | mujoco.mjtDisableBit.mjDSBL_SENSOR
+)
 
 
 def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
@@ -65,6 +82,8 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
             )
         if edits.timestep is not None:
             spec.option.timestep = edits.timestep
+        if edits.rigid_body_only:
+            spec.option.disableflags |= int(_RIGID_BODY_ONLY)
         if edits.physics_only:
             for geom in list(spec.geoms):
                 if geom.contype == 0 and geom.conaffinity == 0 and geom.fluid_ellipsoid == 0:

@@ -10,6 +10,7 @@ on which runs share its lockstep.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -63,7 +64,8 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
 def simulate_lockstep(
     scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0
 ) -> list[RunResult | SimulationError]:
-    """Run scenes that share a `lockstep_key` together, on `nthread` threads (0: all cores).
+    """Run scenes that share a `lockstep_key` together, on `nthread` threads (0: all cores; never
+    more threads than runs).
 
     Returns one RunResult per scene, in order, or the SimulationError of a run that diverged
     (the others go on). Raises BwrError if the path or a model is bad: that fails every run.
@@ -80,6 +82,7 @@ def simulate_lockstep(
     surface = FuzzySurface.load(RuleBase.from_toml(scene.controller.rule_base))
 
     runs = len(scenes)
+    nthread = min(nthread or os.cpu_count() or 1, runs)
     period = scene.simulation.control_period
     samples = round(trajectory.duration / period) + 1
     time = trajectory.times[0] + np.arange(samples) * period
