@@ -16,7 +16,7 @@ from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import AXES, UNITS, to_display
 from bwr_twin.results.rundir import write_run
 from bwr_twin.shipped import SCENES
-from bwr_twin.sim.lockstep import simulate
+from bwr_twin.sim.lockstep import simulate_lockstep
 
 PAPER_SCENES = ("paper_shared_gain", "paper_individual_gains")
 FIGURES = ("positions.png", "errors_position.png", "errors_velocity.png", "errors_acceleration.png", "fuzzy_outputs.png", "cp_path.png")
@@ -32,17 +32,18 @@ def main() -> None:
         print(f"\n### {name} (seeds {', '.join(map(str, args.seeds))})\n")
         print("| axis | position error max | at t | velocity error max | acceleration error max | position error RMS |")
         print("| --- | --- | --- | --- | --- | --- |")
-        runs = []
-        for seed in args.seeds:
-            result = simulate(load_scene(SCENES / f"{name}.toml", {"simulation.seed": seed}))
-            if seed == args.seeds[0]:
-                run_dir = args.out / name
-                write_run(result, run_dir, overwrite=True)
-                figures = ROOT / "docs" / "figures" / name
-                figures.mkdir(parents=True, exist_ok=True)
-                for figure in FIGURES:
-                    shutil.copy(run_dir / figure, figures / figure)
-            runs.append(result.metrics)
+        scenes = [load_scene(SCENES / f"{name}.toml", {"simulation.seed": seed}) for seed in args.seeds]
+        results = simulate_lockstep(scenes)  # the seeds of a scene run together
+        for result in results:
+            if isinstance(result, Exception):
+                raise SystemExit(f"error: {result}")
+        run_dir = args.out / name
+        write_run(results[0], run_dir, overwrite=True)
+        figures = ROOT / "docs" / "figures" / name
+        figures.mkdir(parents=True, exist_ok=True)
+        for figure in FIGURES:
+            shutil.copy(run_dir / figure, figures / figure)
+        runs = [result.metrics for result in results]
         for j, axis in enumerate(AXES):
             unit = UNITS[j]
 

@@ -48,34 +48,32 @@ class OnlineMetrics:
     dominated by the travel error, is sampled at the record period.
     """
 
-    # Columns of the (runs, 9) errors-and-forces array `add` takes.
-    POSITION, VELOCITY, FORCE = slice(0, 3), slice(3, 6), slice(6, 9)
+    # Columns of the (runs, 12) array `add` takes: errors (desired - actual) and applied forces.
+    POSITION, VELOCITY, ACCELERATION, FORCE = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 
     def __init__(self, runs: int, drive_limits: np.ndarray):
-        self._low, self._high = drive_limits[:, 0].copy(), drive_limits[:, 1].copy()  # N and N m
-        self._limits = drive_limits
-        self._maxima = SignedMax((runs, 9))
-        self._acceleration = SignedMax((runs, 3))
+        self._limits = drive_limits  # (3, 2), N and N m
+        self._limited = bool(np.isfinite(drive_limits).any())
+        self._low, self._high = drive_limits[:, 0].copy(), drive_limits[:, 1].copy()
+        self._maxima = SignedMax((runs, 12))
         self._cp = SignedMax((runs,))
-        self._squares = np.zeros((runs, 9))
-        self._square = np.zeros((runs, 9))
+        self._squares = np.zeros((runs, 12))
+        self._square = np.zeros((runs, 12))
         self._saturated = np.zeros((runs, 3), dtype=np.int64)
         self._position_final = np.zeros((runs, 3))
         self._samples = 0
 
     def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray) -> None:
-        """Sample k: a (runs, 9) array of position errors, velocity errors and applied drive
-        forces (columns POSITION, VELOCITY, FORCE), and the (runs, 3) commanded forces."""
+        """Sample k, once its control period has ended: a (runs, 12) array of position,
+        velocity and acceleration errors and applied drive forces (columns POSITION, VELOCITY,
+        ACCELERATION, FORCE), and the (runs, 3) commanded forces."""
         self._maxima.add(k, errors_and_forces)
         np.multiply(errors_and_forces, errors_and_forces, out=self._square)
         self._squares += self._square
-        self._saturated += (command < self._low) | (command > self._high)
+        if self._limited:
+            self._saturated += (command < self._low) | (command > self._high)
         self._position_final[:] = errors_and_forces[:, self.POSITION]
         self._samples += 1
-
-    def add_acceleration(self, k: int, acceleration_error: np.ndarray) -> None:
-        """Sample k's acceleration error: known one period later, when the period has ended."""
-        self._acceleration.add(k, acceleration_error)
 
     def add_cp_error(self, k: int, cp_error: np.ndarray) -> None:
         """Sample k's (runs,) distance of the CP from its desired position, m."""
@@ -89,14 +87,14 @@ class OnlineMetrics:
         rms = np.sqrt(self._squares[run] / n)
         for j, axis in enumerate(AXES):
             limit = self._limits[j]
-            p, v, f = j, 3 + j, 6 + j
+            p, v, a, f = j, 3 + j, 6 + j, 9 + j
             metrics[axis] = {
                 "position_error_max": float(value[p]),
                 "position_error_max_time": float(time[index[p]]),
                 "velocity_error_max": float(value[v]),
                 "velocity_error_max_time": float(time[index[v]]),
-                "acceleration_error_max": float(self._acceleration.value[run, j]),
-                "acceleration_error_max_time": float(time[self._acceleration.index[run, j]]),
+                "acceleration_error_max": float(value[a]),
+                "acceleration_error_max_time": float(time[index[a]]),
                 "position_error_rms": float(rms[p]),
                 "position_error_final": float(self._position_final[run, j]),
                 "drive_force_max": float(value[f]),

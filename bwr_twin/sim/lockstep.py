@@ -97,48 +97,58 @@ def simulate_lockstep(
     disturbances = Disturbances(scenes, period)
     recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
     metrics = OnlineMetrics(runs, machine.drive_limits)
-    signals = recorder.signals
 
     wind_mean = np.array([s.plant.wind_speed for s in scenes])
-    errors_and_forces = np.zeros((runs, 9))
-    position_error = errors_and_forces[:, OnlineMetrics.POSITION]
-    velocity_error = errors_and_forces[:, OnlineMetrics.VELOCITY]
-    applied_force = errors_and_forces[:, OnlineMetrics.FORCE]
-    q, qd, qd_previous = np.zeros((runs, 3)), np.zeros((runs, 3)), np.zeros((runs, 3))
+    errors_and_forces = np.zeros((runs, 12))
+    columns = {name: errors_and_forces[:, getattr(OnlineMetrics, name)]
+               for name in ("POSITION", "VELOCITY", "ACCELERATION", "FORCE")}
+    qdd = np.zeros((runs, 3))
+
+    def finish(j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray, inputs: tuple) -> None:
+        """Sample j's metrics and record, once its period has ended at velocity qd_next. Runs
+        before the next period's control: the controller and plant still hold sample j's."""
+        np.subtract(q_desired[j], q, out=columns["POSITION"])
+        np.subtract(qd_desired[j], qd, out=columns["VELOCITY"])
+        np.divide(np.subtract(qd_next, qd, out=qdd), period, out=qdd)  # mean over the period
+        np.subtract(qdd_desired[j], qdd, out=columns["ACCELERATION"])
+        np.copyto(columns["FORCE"], plant.drive_force)
+        q_measured, qd_measured, command, disturbance, gust = inputs
+        metrics.add(j, errors_and_forces, command)
+        row = recorder.row(j)
+        if row < 0:
+            return
+        metrics.add_cp_error(j, np.linalg.norm(cp_desired[j] - machine.fk(q), axis=1))
+        for name, value in (("q_desired", q_desired[j]), ("q", q), ("q_measured", q_measured),
+                            ("qd_desired", qd_desired[j]), ("qd", qd), ("qd_measured", qd_measured),
+                            ("qdd_desired", qdd_desired[j]), ("qdd", qdd),
+                            ("fuzzy_output", controller.fuzzy_output),
+                            ("acceleration_command", controller.acceleration_command),
+                            ("drive_force_command", command), ("drive_force", plant.drive_force),
+                            ("disturbance", disturbance)):
+            recorder.signals[name][row] = value
+        recorder.wind_speed[row] = wind_mean + gust
+
+    q, qd, q_last, qd_last = (np.zeros((runs, 3)) for _ in range(4))
+    inputs: tuple = ()
     with mujoco_warnings():
         for k in range(samples):
+            q, q_last, qd, qd_last = q_last, q, qd_last, qd  # this period's buffers; last period's kept
             np.copyto(q, plant.qpos)
             np.copyto(qd, plant.qvel)
             if k:
-                _end_period(k - 1, qd, qd_previous, period, qdd_desired, metrics, recorder)
+                finish(k - 1, q_last, qd_last, qd, inputs)
             q_measured, qd_measured = encoders.measure(q, qd)
             command = controller.compute(q_measured, qd_measured, q_desired[k], qd_desired[k],
                                          qdd_desired[k], plant.alive)
             disturbance = disturbances.forces.sample(k)
             gust = disturbances.gusts.sample(k)
             plant.step(command, disturbance, gust)
-
-            np.subtract(q_desired[k], q, out=position_error)
-            np.subtract(qd_desired[k], qd, out=velocity_error)
-            np.copyto(applied_force, plant.drive_force)
-            metrics.add(k, errors_and_forces, command)
-            row = recorder.row(k)
-            if row >= 0:
-                metrics.add_cp_error(k, np.linalg.norm(cp_desired[k] - machine.fk(q), axis=1))
-                for name, value in (("q_desired", q_desired[k]), ("q", q), ("q_measured", q_measured),
-                                    ("qd_desired", qd_desired[k]), ("qd", qd), ("qd_measured", qd_measured),
-                                    ("qdd_desired", qdd_desired[k]), ("fuzzy_output", controller.fuzzy_output),
-                                    ("acceleration_command", controller.acceleration_command),
-                                    ("drive_force_command", command), ("drive_force", applied_force),
-                                    ("disturbance", disturbance)):
-                    signals[name][row] = value
-                recorder.wind_speed[row] = wind_mean + gust
-            q, qd_previous, qd = qd_previous, qd, q  # reuse the buffers: qd becomes the previous one
+            inputs = (q_measured, qd_measured, command, disturbance, gust)
             if k % HEALTH_CHECK_EVERY == HEALTH_CHECK_EVERY - 1:
                 plant.check_health()
                 if progress is not None:
                     progress((k + 1) * period, trajectory.duration)
-        _end_period(samples - 1, plant.qvel.copy(), qd_previous, period, qdd_desired, metrics, recorder)
+        finish(samples - 1, q, qd, plant.qvel, inputs)
         plant.check_health()
 
     results: list[RunResult | SimulationError] = []
@@ -161,13 +171,3 @@ def simulate_lockstep(
         results.append(recorder.run_result(run, scene=run_scene, machine=machine, trajectory=trajectory,
                                            time=time, metrics=run_metrics))
     return results
-
-
-def _end_period(k: int, qd_next: np.ndarray, qd: np.ndarray, period: float, qdd_desired: np.ndarray,
-                metrics: OnlineMetrics, recorder: Recorder) -> None:
-    """Sample k's mean acceleration, known once its period has ended."""
-    qdd = (qd_next - qd) / period
-    metrics.add_acceleration(k, qdd_desired[k] - qdd)
-    row = recorder.row(k)
-    if row >= 0:
-        recorder.signals["qdd"][row] = qdd

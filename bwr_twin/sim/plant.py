@@ -52,8 +52,10 @@ class Plant:
         self._ctrl = batch.bind("ctrl")
         self._applied = batch.bind("qfrc_applied")
         self.drive_force = batch.bind("qfrc_actuator")
-        self._actuators = np.array(machine.actuator_ids)
-        self._gear = machine.model.actuator_gear[self._actuators, 0].copy()
+        ids = list(machine.actuator_ids)
+        # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
+        self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
+        self._gear = machine.model.actuator_gear[ids, 0].copy()
         self._substeps = round(sim.control_period / sim.timestep)
 
         if any(s.plant.frictionloss is not None for s in scenes):
