@@ -296,6 +296,21 @@ def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
     assert not debris(out)
 
 
+def test_a_run_that_diverges_fails_alone_in_its_lockstep(tmp_path):
+    sweep = write_sweep(tmp_path, VARY + "controller.output_gain.travel = [0.01, 1e12, 0.02]\n")
+    out = tmp_path / "out"
+    proc = batch_cli(sweep, "--out", out, "--workers", 1)  # one lockstep of three runs
+    assert proc.returncode == 1, proc.stderr
+    first, diverged, third = summary_rows(out)
+    assert first["status"] == third["status"] == "ok"
+    assert diverged["status"] == "failed" and "the simulation diverged" in diverged["error"]
+    assert {p.name for p in (out / diverged["run"]).iterdir()} == {"error.txt", "scene.json"}
+    alone = tmp_path / "alone"
+    command = [sys.executable, "-m", "bwr_twin.run", sweep.parent / "short.toml", "--out", alone, "--no-plots"]
+    assert subprocess.run(list(map(str, command)), cwd=ROOT, capture_output=True, check=False).returncode == 0
+    assert (out / first["run"] / "metrics.json").read_bytes() == (alone / "metrics.json").read_bytes()
+
+
 def test_the_heavy_machine_runs_in_a_batch_by_swapping_the_mjcf(tmp_path):
     heavy = HEAVY_MJCF
     sweep = write_sweep(tmp_path, VARY + f'machine.mjcf = ["{PAPER_MJCF}", "{heavy}"]\n')
