@@ -91,6 +91,13 @@ def test_existing_output_is_left_untouched(tmp_path):
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
 
 
+def test_a_negative_seed_exits_2_naming_the_key(tmp_path):
+    proc = run_cli(write_short_scene(tmp_path), "--out", tmp_path / "out", "--seed", "-1")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().endswith("'simulation.seed' must be >= 0, got -1")
+    assert not (tmp_path / "out").exists()
+
+
 def test_missing_scene_file_exits_2(tmp_path):
     proc = run_cli(tmp_path / "nope.toml", "--out", tmp_path / "out")
     assert proc.returncode == 2 and "nope.toml: scene file not found" in proc.stderr

@@ -1,5 +1,7 @@
 """Scene files load into typed configuration, and every broken rule is named in one line."""
 
+import re
+
 import numpy as np
 import pytest
 from conftest import PAPER_MJCF, PAPER_VIA_POINTS, SCENES
@@ -40,6 +42,17 @@ def test_overrides_are_validated_like_the_file():
         load_scene(INDIVIDUAL, {"controller.output_gain": [0.02]})
 
 
+@pytest.mark.parametrize("key, value, named", [
+    ("plant.frictionloss", [float("inf"), 1.0, 1.0], "plant.frictionloss[0]"),
+    ("plant.wind_direction", float("nan"), "plant.wind_direction"),
+    ("plant.wind_speed", float("-inf"), "plant.wind_speed"),
+    ("plant.payload", [{"body": "boom", "mass": 1.0, "pos": [0.0, float("nan"), 0.0]}], "plant.payload[0].pos[1]"),
+])
+def test_numbers_that_are_not_numbers_are_refused_naming_the_key(key, value, named):
+    with pytest.raises(SceneError, match=rf"'{re.escape(named)}' must be a number, got (nan|inf|-inf)"):
+        load_scene(INDIVIDUAL, {key: value})
+
+
 @pytest.mark.parametrize(
     "old, new, message",
     [
@@ -55,6 +68,11 @@ def test_overrides_are_validated_like_the_file():
         ("velocity_source = \"true\"", "velocity_source = true", r"'encoders.velocity_source' must be one of"),
         ("acceleration_feedforward = false", 'acceleration_feedforward = false\nvelocity_filter = 0.1',
          r"'controller.velocity_filter' has moved: write it as 'encoders.velocity_filter'"),
+        ("timestep = 0.002", "timestep = inf", r"'simulation.timestep' must be a number, got inf"),
+        ("amplitude = [100.0, 100.0, 100.0]", "amplitude = [100.0, nan, 100.0]",
+         r"'disturbance.amplitude\[1\]' must be a number, got nan"),
+        ("t = 300.0", "t = inf", r"'path.via_points\[2\].t' must be a number, got inf"),
+        ("seed = 1", "seed = -3", r"'simulation.seed' must be >= 0, got -3"),
         ("record_period = 0.1", "record_period = 0.015",
          r"'simulation.record_period' \(0.015 s\) must be a whole multiple of 'simulation.control_period' \(0.01 s\)"),
     ],

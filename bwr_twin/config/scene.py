@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import sys
 import types
 import typing
@@ -305,6 +306,8 @@ def _check_rules(scene: Scene) -> None:
         if not value > 0:
             raise SceneError(f"{p}: '{key}' must be > 0, got {value}")
 
+    if sim.seed < 0:
+        raise SceneError(f"{p}: 'simulation.seed' must be >= 0, got {sim.seed}")
     positive("simulation.timestep", sim.timestep)
     positive("simulation.control_period", sim.control_period)
     positive("simulation.record_period", sim.record_period)
@@ -362,8 +365,9 @@ def _plain(value: Any) -> Any:
 
 
 def is_number(value: Any) -> bool:
-    """A TOML (or JSON) integer or float; Python's bool is an int, but true is not a number."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+    """A finite TOML (or JSON) integer or float. TOML writes nan and inf, which no setting may be;
+    Python's bool is an int, but true is not a number."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def is_integer(value: Any) -> bool:
