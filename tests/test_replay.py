@@ -2,6 +2,7 @@
 by MuJoCo's own kinematics; the server binds locally, serves and frees its port; the timeline
 plays; the offline export stays small. Browser checks are in test_browser.py."""
 
+import shutil
 import signal
 import socket
 import subprocess
@@ -444,6 +445,34 @@ def test_cli_bad_input_exits_2_with_one_line(args, message):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 2 and "Traceback" not in err
     assert message in err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda d: (d / "scene.json").write_text("[1, 2]\n"), "scene.json: not a scene as bwr_twin.run writes it"),
+        (lambda d: (d / "scene.json").write_text(
+            (d / "scene.json").read_text().replace('"via_points": [', '"via_points": "none", "old": [')),
+         "scene.json: not a scene as bwr_twin.run writes it"),
+        (lambda d: (d / "timeseries.csv").write_text((d / "timeseries.csv").read_text().splitlines()[0] + "\n"),
+         "timeseries.csv: 0 rows of samples; a replay needs at least 2"),
+        (lambda d: (d / "timeseries.csv").write_text("\n".join((d / "timeseries.csv").read_text().splitlines()[:2]) + "\n"),
+         "timeseries.csv: 1 rows of samples; a replay needs at least 2"),
+    ],
+    ids=["scene-a-list", "via-points-a-string", "header-only", "one-row"],
+)
+def test_a_malformed_run_directory_gets_one_line_and_nothing_written(short_run, tmp_path, damage, message):
+    run_dir = tmp_path / "run"
+    shutil.copytree(short_run[0], run_dir)
+    damage(run_dir)
+    before = {p.name: p.read_bytes() for p in run_dir.iterdir()}
+    proc = _start_cli(run_dir, "--export", tmp_path / "replay.html")
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], lines
+    assert not (tmp_path / "replay.html").exists()
+    assert {p.name: p.read_bytes() for p in run_dir.iterdir()} == before
 
 
 def test_a_scene_is_simulated_in_a_child_process_that_reports_its_progress(short_scene, short_recording):

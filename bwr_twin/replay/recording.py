@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -136,7 +137,12 @@ class Recording:
             raise BwrError(f"{run_dir}: not a run directory of bwr_twin.run (no {', '.join(missing)})")
         try:
             scene = json.loads((run_dir / SCENE_FILE).read_text())
-            columns = read_timeseries(run_dir / TIMESERIES_FILE)
+            with warnings.catch_warnings():  # numpy warns of an empty file; the check below says it
+                warnings.simplefilter("ignore", UserWarning)
+                columns = read_timeseries(run_dir / TIMESERIES_FILE)
+            rows = len(columns.get("time_s", ()))
+            if rows < 2:
+                raise BwrError(f"{run_dir / TIMESERIES_FILE}: {rows} rows of samples; a replay needs at least 2")
             machine = Machine(scene["machine"]["mjcf"])
             return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name)
         except (ValueError, OSError) as exc:
@@ -144,6 +150,11 @@ class Recording:
         except KeyError as exc:
             raise BwrError(
                 f"{run_dir}: incomplete run directory: no {exc} in {SCENE_FILE} or {TIMESERIES_FILE}"
+            ) from None
+        except (TypeError, AttributeError, IndexError):  # JSON of another shape than a scene's
+            raise BwrError(
+                f"{run_dir / SCENE_FILE}: not a scene as bwr_twin.run writes it (an object with machine, "
+                "path and its via points)"
             ) from None
 
     @classmethod

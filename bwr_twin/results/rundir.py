@@ -86,6 +86,8 @@ def read_timeseries(path: str | Path) -> dict[str, np.ndarray]:
     with open(path) as f:
         names = f.readline().strip().split(",")
     values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if values.size == 0:  # a header and no rows
+        values = np.empty((0, len(names)))
     return {name: values[:, i] for i, name in enumerate(names)}
 
 

@@ -1,0 +1,1 @@
+"""Configuration: scene files (typed, validated, with `extends` and overrides) and sweep files."""

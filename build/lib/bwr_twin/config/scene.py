@@ -1,0 +1,374 @@
+"""Scenes: TOML files in scenes/ loaded into typed, validated, frozen configuration.
+
+A scene names the machine, the reclaim path, the physics and control rates, the imperfect world
+(encoders, disturbances, unmodelled plant effects) and the controller settings. Every key is
+checked against the dataclasses below; a bad file raises SceneError with one line naming the
+file, the key and the rule it broke. `overrides` (dotted keys, as a sweep or the command line
+gives them) are applied before validation, so they are checked exactly like the file.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import sys
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+from bwr_twin.errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ViaPoint:
+    t: float  # s
+    p: Vec3  # m, in the path's frame
+
+
+@dataclass(frozen=True)
+class MachineSection:
+    mjcf: Path  # the plant
+    controller_mjcf: Path | None = None  # what the controller believes; None: the plant's file
+
+
+@dataclass(frozen=True)
+class PathSection:
+    frame: Literal["paper", "world"]
+    via_points: tuple[ViaPoint, ...]
+
+
+@dataclass(frozen=True)
+class SimulationSection:
+    timestep: float  # s, physics
+    control_period: float  # s, controller and disturbance update
+    record_period: float  # s, rows of timeseries.csv (metrics use every control period)
+    seed: int
+
+
+@dataclass(frozen=True)
+class EncoderSection:
+    resolution: Vec3  # m, rad, rad
+    velocity_source: Literal["true", "encoder"] = "true"  # the plant's joint velocity, or estimated
+    velocity_filter: float = 0.05  # s, time constant of the encoder velocity estimate
+
+
+@dataclass(frozen=True)
+class DisturbanceSection:
+    amplitude: Vec3  # N, N m, N m; uniform in [-a, a]
+    hold_time: float  # s
+
+
+@dataclass(frozen=True)
+class ControllerSection:
+    rule_base: Path
+    input_scale_e: float
+    input_scale_ec: float
+    output_gain: Vec3
+    acceleration_feedforward: bool = False
+
+
+@dataclass(frozen=True)
+class Payload:
+    body: str  # the MJCF body that carries it
+    mass: float  # kg
+    pos: Vec3  # m, in that body's frame
+
+
+@dataclass(frozen=True)
+class PlantSection:
+    """Unmodelled effects: they act on the plant only, never on the controller's belief."""
+
+    frictionloss: Vec3 | None = None  # Coulomb friction, N and N m; None keeps the MJCF's
+    wind_speed: float = 0.0  # m/s, mean, blowing towards wind_direction
+    wind_direction: float = 90.0  # deg from world +X towards +Y
+    gust_amplitude: float = 0.0  # m/s, uniform in [-a, a] around the mean
+    gust_hold_time: float = 5.0  # s, how long one gust lasts
+    air_density: float = 1.204  # kg/m^3, dry air at 20 degC
+    payload: tuple[Payload, ...] = ()  # point masses the plant carries and its MJCF does not show
+
+
+@dataclass(frozen=True)
+class Scene:
+    path: Path  # the scene file, for messages
+    machine: MachineSection
+    trajectory: PathSection
+    simulation: SimulationSection
+    encoders: EncoderSection
+    disturbance: DisturbanceSection
+    controller: ControllerSection
+    plant: PlantSection = field(default_factory=PlantSection)
+
+    @property
+    def controller_mjcf(self) -> Path:
+        return self.machine.controller_mjcf or self.machine.mjcf
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (paths as strings), as written next to a run's results."""
+        return _plain(dataclasses.asdict(self))
+
+
+# TOML table name of each Scene field ("path" is a reserved word of the scene itself).
+_TABLES = {"trajectory": "path"}
+
+
+def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+    """Read, override and validate a scene file.
+
+    Args:
+        path: the TOML file. Relative paths inside it are relative to its folder. A top-level
+            `extends = "other.toml"` reads that scene first and lays this file's tables over it.
+        overrides: dotted keys to replace before validation, e.g. {"simulation.seed": 3,
+            "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
+    """
+    path = Path(path)
+    raw = _read_raw(path, ())
+    for key, value in (overrides or {}).items():
+        _set_dotted(raw, key, _resolve_paths(value, Path.cwd()) if _is_path_key(key) else value, path)
+    scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
+    _check_rules(scene)
+    return scene
+
+
+def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
+    """The file's tables, paths made absolute, merged over the scene it extends."""
+    if not path.is_file():
+        by = f" (extended by {extended_by[-1]})" if extended_by else ""
+        raise SceneError(f"{path}: scene file not found{by}")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: malformed TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{path}: not a text file") from None
+    base = raw.pop("extends", None)
+    raw = _resolve_paths(raw, path.parent)
+    if base is None:
+        return raw
+    if not isinstance(base, str):
+        raise SceneError(f"{path}: 'extends' must be a file path, got {base!r}")
+    base_path = (path.parent / base).resolve()
+    chain = extended_by + (path.resolve(),)
+    if base_path in chain:
+        raise SceneError(f"{path}: 'extends' makes a cycle through {base_path.name}")
+    return _merged(_read_raw(base_path, chain), raw)
+
+
+def _merged(base: dict, over: dict) -> dict:
+    """`over` laid over `base`: tables merge key by key, anything else replaces."""
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def _rename_tables(raw: dict) -> dict:
+    out = dict(raw)
+    for attr, table in _TABLES.items():
+        if table in out:
+            out[attr] = out.pop(table)
+    return out
+
+
+# Keys whose values are file paths, relative to the file that names them.
+PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
+
+
+def _is_path_key(dotted: str) -> bool:
+    return dotted.rsplit(".", 1)[-1] in PATH_KEYS
+
+
+def _resolve_paths(raw: Any, base: Path) -> Any:
+    """Make the path-valued keys absolute, relative to `base`."""
+    if isinstance(raw, str):
+        return str((base / raw).resolve())
+    if not isinstance(raw, dict):
+        return raw
+    return {
+        k: (
+            str((base / v).resolve())
+            if k in PATH_KEYS and isinstance(v, str)
+            else _resolve_paths(v, base)
+            if isinstance(v, dict)
+            else v
+        )
+        for k, v in raw.items()
+    }
+
+
+def _set_dotted(raw: dict, dotted: str, value: Any, path: Path) -> None:
+    *tables, key = dotted.split(".")
+    node = raw
+    for table in tables:
+        node = node.setdefault(table, {})
+        if not isinstance(node, dict):
+            raise SceneError(f"{path}: override '{dotted}': '{table}' is not a table")
+    node[key] = copy.deepcopy(value)
+
+
+# Keys that have moved: old dotted key -> new dotted key.
+MOVED_KEYS = {
+    "controller.velocity_source": "encoders.velocity_source",
+    "controller.velocity_filter": "encoders.velocity_filter",
+}
+
+
+def _build(cls: type, table: Any, path: Path, where: str) -> Any:
+    """Build dataclass `cls` from a TOML table, checking keys and types."""
+    if not isinstance(table, dict):
+        raise SceneError(f"{path}: [{where}] must be a table")
+    for key in table:
+        if _join(where, key) in MOVED_KEYS:
+            raise SceneError(f"{path}: '{_join(where, key)}' has moved: write it as '{MOVED_KEYS[_join(where, key)]}'")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    shown = {_TABLES.get(n, n): n for n in fields}
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        key = _TABLES.get(unknown[0], unknown[0])
+        valid = ", ".join(sorted(shown))
+        raise SceneError(f"{path}: unknown key '{_join(where, key)}' (valid here: {valid})")
+    kwargs = {}
+    for name, f in fields.items():
+        key = _join(where, _TABLES.get(name, name))
+        if name not in table:
+            no_default = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+            if no_default:
+                raise SceneError(f"{path}: missing key '{key}'")
+            continue
+        kwargs[name] = _convert(hints[name], table[name], path, key)
+    return cls(**kwargs)
+
+
+def _join(where: str, key: str) -> str:
+    return f"{where}.{key}" if where else key
+
+
+def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        (inner,) = [a for a in args if a is not type(None)]
+        return _convert(inner, value, path, key)
+    if dataclasses.is_dataclass(hint):
+        return _build(hint, value, path, key)
+    if origin is Literal:
+        if value not in args:
+            raise SceneError(f"{path}: '{key}' must be one of {list(args)}, got {value!r}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list):
+            raise SceneError(f"{path}: '{key}' must be a list, got {type(value).__name__}")
+        if args[-1] is Ellipsis:
+            return tuple(_convert(args[0], v, path, f"{key}[{i}]") for i, v in enumerate(value))
+        if len(value) != len(args):
+            raise SceneError(f"{path}: '{key}' must hold {len(args)} values (travel, slew, luff), got {len(value)}")
+        return tuple(_convert(a, v, path, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+    if hint is float:
+        if not is_number(value):
+            raise SceneError(f"{path}: '{key}' must be a number, got {value!r}")
+        return float(value)
+    if hint is int:
+        if not is_integer(value):
+            raise SceneError(f"{path}: '{key}' must be an integer, got {value!r}")
+        return value
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise SceneError(f"{path}: '{key}' must be true or false, got {value!r}")
+        return value
+    if hint is Path:
+        if not isinstance(value, str):
+            raise SceneError(f"{path}: '{key}' must be a file path, got {value!r}")
+        return Path(value)
+    if hint is str:
+        if not isinstance(value, str):
+            raise SceneError(f"{path}: '{key}' must be a string, got {value!r}")
+        return value
+    raise TypeError(f"unsupported scene field type {hint}")  # a bug here, not in the file
+
+
+def _check_rules(scene: Scene) -> None:
+    """Rules that types alone do not express."""
+    p = scene.path
+    sim = scene.simulation
+
+    def positive(key: str, value: float) -> None:
+        if not value > 0:
+            raise SceneError(f"{p}: '{key}' must be > 0, got {value}")
+
+    if sim.seed < 0:
+        raise SceneError(f"{p}: 'simulation.seed' must be >= 0, got {sim.seed}")
+    positive("simulation.timestep", sim.timestep)
+    positive("simulation.control_period", sim.control_period)
+    positive("simulation.record_period", sim.record_period)
+    positive("disturbance.hold_time", scene.disturbance.hold_time)
+    positive("controller.input_scale_e", scene.controller.input_scale_e)
+    positive("controller.input_scale_ec", scene.controller.input_scale_ec)
+    positive("encoders.velocity_filter", scene.encoders.velocity_filter)
+    positive("plant.gust_hold_time", scene.plant.gust_hold_time)
+    for key, vec in (
+        ("encoders.resolution", scene.encoders.resolution),
+        ("controller.output_gain", scene.controller.output_gain),
+    ):
+        for axis, value in zip(("travel", "slew", "luff"), vec):
+            positive(f"{key} ({axis})", value)
+    for key, vec in (("disturbance.amplitude", scene.disturbance.amplitude), ("plant.frictionloss", scene.plant.frictionloss)):
+        if vec is not None and min(vec) < 0:
+            raise SceneError(f"{p}: '{key}' must be >= 0 on every axis, got {list(vec)}")
+    for i, payload in enumerate(scene.plant.payload):
+        if not payload.mass > 0:
+            raise SceneError(f"{p}: 'plant.payload[{i}].mass' must be > 0, got {payload.mass}")
+    for key, value in (("plant.gust_amplitude", scene.plant.gust_amplitude), ("plant.wind_speed", scene.plant.wind_speed), ("plant.air_density", scene.plant.air_density)):
+        if value < 0:
+            raise SceneError(f"{p}: '{key}' must be >= 0, got {value}")
+    for period, unit in (("control_period", "timestep"), ("record_period", "control_period")):
+        ratio = getattr(sim, period) / getattr(sim, unit)
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise SceneError(
+                f"{p}: 'simulation.{period}' ({getattr(sim, period)} s) must be a whole multiple of "
+                f"'simulation.{unit}' ({getattr(sim, unit)} s)"
+            )
+    via = scene.trajectory.via_points
+    if len(via) < 2:
+        raise SceneError(f"{p}: 'path.via_points' needs at least 2 via points, got {len(via)}")
+    for i in range(1, len(via)):
+        if not via[i].t > via[i - 1].t:
+            raise SceneError(
+                f"{p}: via point {i + 1} (t = {via[i].t} s) must come after via point {i} "
+                f"(t = {via[i - 1].t} s): times must increase"
+            )
+    for key in ("machine.mjcf", "machine.controller_mjcf", "controller.rule_base"):
+        section, name = key.split(".")
+        file = getattr(getattr(scene, section), name)
+        if file is not None and not file.is_file():
+            raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def is_number(value: Any) -> bool:
+    """A finite TOML (or JSON) integer or float. TOML writes nan and inf, which no setting may be;
+    Python's bool is an int, but true is not a number."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def is_integer(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)

@@ -1,0 +1,272 @@
+"""A reclaimer loaded from any MJCF file that meets the model contract (docs/contracts.md).
+
+Everything the kinematics needs (where the slew axis stands, where the luff pivot sits, how far
+out the bucket wheel centre CP is) is read from the compiled model at q = 0, and the operating
+envelope from the file's `<custom>` data, so swapping the file is enough to swap the machine.
+
+Forward and inverse kinematics are the closed forms of the paper's Eq. (2) and (3), written for
+that geometry: a slew axis at (sx, sy), a luff pivot `pivot_reach` out from it at height
+`pivot_height`, and a CP `boom_length` from the pivot at elevation `boom_angle0 + luff`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
+from bwr_twin.model.spec import Edits, Payload, compile_model
+
+AXES = ("travel", "slew", "luff")
+UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
+CP_SITE = "bucket_wheel_center"
+ENVELOPE_KEY = "envelope_{axis}"
+# Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
+CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
+_TOL = 1e-9
+
+
+def to_display(axis_index: int, value):
+    """A joint value, or an array of them, in its display unit (m or degrees)."""
+    return value if axis_index == 0 else np.degrees(value)
+
+
+def describe(axis_index: int, value: float) -> str:
+    """A joint value with its unit, for messages: '12.300 m' or '90.000 deg'."""
+    return f"{to_display(axis_index, value):.3f} {UNITS[axis_index]}"
+
+
+def paper_to_world(p: np.ndarray) -> np.ndarray:
+    """Paper frame 0 (x lateral, y down, z along the rail) to world (Z up, rail along +X)."""
+    p = np.asarray(p, dtype=float)
+    return np.stack([p[..., 2], -p[..., 0], -p[..., 1]], axis=-1)
+
+
+def world_to_paper(p: np.ndarray) -> np.ndarray:
+    """World to paper frame 0: x_p = -Y, y_p = -Z, z_p = X."""
+    p = np.asarray(p, dtype=float)
+    return np.stack([-p[..., 1], -p[..., 2], p[..., 0]], axis=-1)
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Link geometry derived from the compiled model (the paper's L2-L5 equivalents)."""
+
+    slew_axis_xy: tuple[float, float]  # world XY of the slew axis at travel = 0 [m]
+    pivot_reach: float  # slew axis to luff pivot, horizontal (paper L4) [m]
+    pivot_height: float  # luff pivot above the rail (paper L2 + L3) [m]
+    boom_length: float  # luff pivot to CP (paper L5) [m]
+    boom_angle0: float  # elevation of pivot-to-CP at luff = 0 [rad]
+
+
+class Machine:
+    """A compiled reclaimer model with its geometry, envelope and kinematics.
+
+    Attributes:
+        path: the MJCF file.
+        model: the compiled MjModel; simulation parts make their own MjData from it.
+        geometry: link geometry read from the model.
+        envelope: (3, 2) operating envelope per axis, [low, high] in m and rad.
+        joint_range: (3, 2) mechanical end stops (inf where a joint is unlimited).
+        drive_limits: (3, 2) generalised force limits of the drives in N and N m (inf if none).
+    """
+
+    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = ()):
+        """Compile `path`, adding each payload as a point mass on its body (what the plant
+        carries and the file does not say, e.g. ore caked on the bucket wheel)."""
+        self.path = Path(path)
+        self.payloads = tuple(payloads)
+        self.model = compile_model(self.path, Edits(payloads=self.payloads))
+        self.joint_ids = self._check_joints()
+        self.actuator_ids = self._check_actuators()
+        self.cp_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, CP_SITE)
+        if self.cp_site < 0:
+            raise ModelError(f"{self.path}: no site named '{CP_SITE}' at the bucket wheel centre")
+        self.geometry = self._derive_geometry()
+        self.joint_range = np.array(
+            [
+                self.model.jnt_range[j] if self.model.jnt_limited[j] else (-np.inf, np.inf)
+                for j in self.joint_ids
+            ]
+        )
+        self.envelope = self._read_envelope()
+        self.drive_limits = self._drive_limits()
+
+    def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
+        """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
+
+        `rigid_body_only` leaves only what M and the bias forces need (`Edits`). Raises
+        ModelError if deleting the visual geoms changed a mass or an inertia: the model contract
+        keeps masses in `<inertial>`.
+        """
+        edits = Edits(payloads=self.payloads, timestep=timestep, physics_only=True, rigid_body_only=rigid_body_only)
+        model = compile_model(self.path, edits)
+        for field in ("body_mass", "body_inertia", "body_ipos"):
+            if not np.array_equal(getattr(model, field), getattr(self.model, field)):
+                raise ModelError(
+                    f"{self.path}: its visual geoms change '{field}': give every body an <inertial> "
+                    "and the visual geoms no mass (model contract)"
+                )
+        return model
+
+    # -- contract ---------------------------------------------------------------------------
+
+    def _check_joints(self) -> list[int]:
+        m = self.model
+        names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
+        if names != list(AXES) or m.nv != 3:
+            raise ModelError(
+                f"{self.path}: the model must have exactly the joints {list(AXES)} in that order, "
+                f"found {names}"
+            )
+        expected_types = (mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_HINGE)
+        for j, (axis, jtype) in enumerate(zip(AXES, expected_types)):
+            if m.jnt_type[j] != jtype:
+                raise ModelError(f"{self.path}: joint '{axis}' must be a {jtype.name[6:].lower()} joint")
+        # Each joint must sit on a descendant of the previous joint's body (a serial PRR chain).
+        for parent, child in ((0, 1), (1, 2)):
+            body = m.jnt_bodyid[child]
+            while body not in (0, m.jnt_bodyid[parent]):
+                body = m.body_parentid[body]
+            if body == 0:
+                raise ModelError(f"{self.path}: joint '{AXES[child]}' does not move with joint '{AXES[parent]}'")
+        return list(range(3))
+
+    def _check_actuators(self) -> list[int]:
+        m = self.model
+        ids = []
+        for j, axis in enumerate(AXES):
+            a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, axis)
+            if a < 0:
+                raise ModelError(f"{self.path}: no actuator named '{axis}' (one motor per joint, named after it)")
+            is_motor = (
+                m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and m.actuator_trnid[a, 0] == j
+                and m.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
+                and m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+                and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
+            )
+            if not is_motor:
+                raise ModelError(f"{self.path}: actuator '{axis}' must be a motor on joint '{axis}'")
+            ids.append(a)
+        return ids
+
+    def _derive_geometry(self) -> Geometry:
+        m = self.model
+        data = mujoco.MjData(m)
+        mujoco.mj_kinematics(m, data)
+        for j, axis in enumerate(AXES):
+            if not np.allclose(data.xaxis[j], CONTRACT_AXES[axis], atol=_TOL):
+                raise ModelError(
+                    f"{self.path}: joint '{axis}' must turn about world {CONTRACT_AXES[axis]} at q = 0, "
+                    f"found {np.round(data.xaxis[j], 6).tolist()}"
+                )
+        slew_axis = data.xanchor[1]
+        pivot = data.xanchor[2]
+        cp = data.site_xpos[self.cp_site]
+        boom = cp - pivot
+        if abs(pivot[1] - slew_axis[1]) > _TOL or abs(boom[1]) > _TOL:
+            raise ModelError(
+                f"{self.path}: the luff pivot and the CP must lie in the boom's vertical plane through "
+                f"the slew axis at q = 0 (lateral offsets {pivot[1] - slew_axis[1]:.3g} m, {boom[1]:.3g} m)"
+            )
+        return Geometry(
+            slew_axis_xy=(float(slew_axis[0]), float(slew_axis[1])),
+            pivot_reach=float(pivot[0] - slew_axis[0]),
+            pivot_height=float(pivot[2]),
+            boom_length=float(np.hypot(boom[0], boom[2])),
+            boom_angle0=float(np.arctan2(boom[2], boom[0])),
+        )
+
+    def _read_envelope(self) -> np.ndarray:
+        m = self.model
+        envelope = self.joint_range.copy()
+        for j, axis in enumerate(AXES):
+            key = ENVELOPE_KEY.format(axis=axis)
+            n = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, key)
+            if n < 0:
+                continue
+            adr, size = m.numeric_adr[n], m.numeric_size[n]
+            low, high = (m.numeric_data[adr : adr + size].tolist() + [np.nan, np.nan])[:2]
+            if size != 2 or not low < high:
+                raise ModelError(f"{self.path}: custom numeric '{key}' must hold two values, low < high")
+            envelope[j] = (low, high)
+        return envelope
+
+    def _drive_limits(self) -> np.ndarray:
+        m = self.model
+        limits = np.full((3, 2), np.inf)
+        limits[:, 0] = -np.inf
+        for j, a in enumerate(self.actuator_ids):
+            gear = m.actuator_gear[a, 0]
+            if m.actuator_ctrllimited[a]:
+                limits[j] = np.sort(m.actuator_ctrlrange[a] * gear)
+            if m.actuator_forcelimited[a]:
+                limits[j, 0] = max(limits[j, 0], m.actuator_forcerange[a, 0])
+                limits[j, 1] = min(limits[j, 1], m.actuator_forcerange[a, 1])
+        return limits
+
+    # -- kinematics ---------------------------------------------------------------------------
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """World position of the CP for joint values q of shape (..., 3) -> (..., 3), in m."""
+        g = self.geometry
+        q = np.asarray(q, dtype=float)
+        elevation = g.boom_angle0 + q[..., 2]
+        reach = g.pivot_reach + g.boom_length * np.cos(elevation)
+        return np.stack(
+            [
+                q[..., 0] + g.slew_axis_xy[0] + reach * np.cos(q[..., 1]),
+                g.slew_axis_xy[1] + reach * np.sin(q[..., 1]),
+                g.pivot_height + g.boom_length * np.sin(elevation),
+            ],
+            axis=-1,
+        )
+
+    def ik(self, p: np.ndarray, *, label: str = "target", check_envelope: bool = True) -> np.ndarray:
+        """Joint values (travel, slew, luff) that put the CP at world point p (m).
+
+        The branch is the paper's: boom pointing away from the slew axis (|luff elevation| and
+        |slew| at most 90 degrees). Raises UnreachableError when no configuration reaches p and,
+        unless told otherwise, EnvelopeError when the answer leaves the operating envelope.
+        """
+        g = self.geometry
+        x, y, z = (float(v) for v in p)
+        where = f"{label} at world ({x:.3f}, {y:.3f}, {z:.3f}) m"
+        height = (z - g.pivot_height) / g.boom_length
+        if abs(height) > 1.0 + _TOL:
+            raise UnreachableError(
+                f"{where}: height Z = {z:.3f} m is beyond the boom's reach, "
+                f"luff pivot at {g.pivot_height:.3f} m +- boom {g.boom_length:.3f} m"
+            )
+        elevation = np.arcsin(np.clip(height, -1.0, 1.0))
+        reach = g.pivot_reach + g.boom_length * np.cos(elevation)
+        lateral = (y - g.slew_axis_xy[1]) / reach
+        if abs(lateral) > 1.0 + _TOL:
+            raise UnreachableError(
+                f"{where}: lateral offset {y - g.slew_axis_xy[1]:.3f} m from the rail axis exceeds "
+                f"the horizontal reach {reach:.3f} m at that height"
+            )
+        slew = np.arcsin(np.clip(lateral, -1.0, 1.0))
+        travel = x - g.slew_axis_xy[0] - reach * np.cos(slew)
+        q = np.array([travel, slew, elevation - g.boom_angle0])
+        if check_envelope:
+            self.check_envelope(q, label=where)
+        return q
+
+    def check_envelope(self, q: np.ndarray, *, label: str = "configuration") -> None:
+        """Raise EnvelopeError naming the axis, the limit and the value if q leaves the envelope."""
+        for j, axis in enumerate(AXES):
+            low, high = self.envelope[j]
+            if not low - _TOL <= q[j] <= high + _TOL:
+                raise EnvelopeError(
+                    f"{label}: {axis} = {describe(j, q[j])} is outside the operating envelope "
+                    f"[{describe(j, low)}, {describe(j, high)}] of {self.path.name}"
+                )
+
+    def __repr__(self) -> str:
+        return f"Machine({str(self.path)!r})"

@@ -1,0 +1,1 @@
+"""Planning: the desired joint trajectory through the scene's via points."""

@@ -1,0 +1,118 @@
+"""Replay a reclaim in the browser.
+
+    python -m bwr_twin.replay                     # the paper's reclaim, scenes/paper_individual_gains.toml
+    python -m bwr_twin.replay SCENE               # simulate a scene, then replay it
+    python -m bwr_twin.replay RUN_DIR             # replay a run of bwr_twin.run, no simulation
+    python -m bwr_twin.replay [...] --export FILE.html   # write an offline recording and exit
+
+Serves http://127.0.0.1:8080 until Ctrl-C (--host to listen elsewhere, --port 0 for any free
+port; a busy port is replaced by the next free one). A scene is simulated in a child process at
+lower CPU priority while the page already shows the machine, its path and the simulation's
+progress; the run is cached in out/replay-cache/ as a run directory of `bwr_twin.run`, so the
+next replay of the same scene, models and code starts with its timeline. Bad input exits with
+status 2 and a one-line message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from bwr_twin.errors import BwrError
+from bwr_twin.shipped import DEFAULT_SCENE, find_scene
+
+if TYPE_CHECKING:
+    from bwr_twin.config.scene import Scene
+    from bwr_twin.replay.recording import Recording
+
+
+
+def _port(text: str) -> int:
+    port = int(text)
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{port} is not a TCP port (0-65535)")
+    return port
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bwr_twin.replay", description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "source",
+        nargs="?",
+        type=Path,
+        default=DEFAULT_SCENE,
+        help="scene TOML file or run directory (default: the paper's individual-gains scene)",
+    )
+    parser.add_argument(
+        "--host", default="127.0.0.1", help="interface to listen on (default: this machine only)"
+    )
+    parser.add_argument(
+        "--port", type=_port, default=8080, help="TCP port; 0 picks a free one (default: 8080)"
+    )
+    parser.add_argument(
+        "--export", type=Path, metavar="FILE.html", help="write an offline HTML recording and exit"
+    )
+    parser.add_argument(
+        "--no-cache", action="store_true", help="simulate even if a cached run exists; cache nothing"
+    )
+    args = parser.parse_args(argv)
+    # A terminated replay stops like an interrupted one: server down, simulating child ended.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
+
+    server = None
+    try:
+        from bwr_twin.replay.simulation import simulate_in_child
+
+        recording, scene = _open(args.source, use_cache=not args.no_cache)
+        if args.export is not None:
+            from bwr_twin.replay.export import export_html
+
+            recording = recording or simulate_in_child(scene, use_cache=not args.no_cache)
+            size = export_html(recording, args.export)
+            duration = recording.plan.duration
+            print(f"wrote {args.export} ({size / 1e6:.1f} MB): the {duration:g} s reclaim, offline")
+            return 0
+
+        from bwr_twin.replay.app import ReplayServer
+        from bwr_twin.replay.recording import Plan
+
+        server = ReplayServer(recording or Plan.from_scene(scene), host=args.host, port=args.port)
+        if args.port not in (0, server.port):
+            print(f"port {args.port} is busy; using {server.port}")
+        print(f"replay at {server.url}  (Ctrl-C to stop)", flush=True)
+        if recording is None:
+            server.load(simulate_in_child(scene, use_cache=not args.no_cache, progress=server.show_progress))
+            print("simulation done: the timeline is ready", flush=True)
+        while True:
+            time.sleep(3600)
+    except BwrError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        if server is not None:
+            server.stop()
+
+
+def _open(source: Path, *, use_cache: bool) -> tuple[Recording | None, Scene | None]:
+    """(recording, None) for a run directory or a cached scene run, else (None, scene)."""
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.replay.recording import Recording
+    from bwr_twin.replay.simulation import cached_run
+
+    if source.is_dir():
+        return Recording.from_run_dir(source), None
+    scene = load_scene(find_scene(source))
+    cached = cached_run(scene)
+    if use_cache and cached.is_dir():
+        return Recording.from_run_dir(cached), None
+    return None, scene
+
+
+if __name__ == "__main__":
+    sys.exit(main())

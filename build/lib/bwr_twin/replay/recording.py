@@ -1,0 +1,211 @@
+"""What the replay shows: a `Plan` (known before simulating) and a `Recording` (after).
+
+A plan is the machine, the desired path sampled at the record period and the via points in
+world coordinates; it comes from a scene in milliseconds, so the page can show the machine while
+the simulation runs. A recording adds the actual joint values and CP positions, read from a run
+directory (`bwr_twin.run`) or taken from an in-memory `RunResult`. A scene's run is cached as a
+run directory keyed by everything that decides its outcome.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import BwrError
+from bwr_twin.model.machine import AXES, Machine, paper_to_world
+from bwr_twin.shipped import PACKAGE
+
+if TYPE_CHECKING:
+    from bwr_twin.results.record import RunResult
+
+# The sub-packages whose code decides a run (the replay's own code does not).
+_SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "results"))
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The machine and its desired path. Arrays are per sample (n,) or (n, 3), per axis in the
+    order travel, slew, luff, in SI units (m, rad, s); positions in world coordinates."""
+
+    machine: Machine
+    title: str
+    time: np.ndarray
+    q_desired: np.ndarray
+    qd_desired: np.ndarray
+    cp_desired: np.ndarray
+    via_times: np.ndarray  # (k,) s
+    via_points: np.ndarray  # (k, 3) m
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1] - self.time[0])
+
+    @classmethod
+    def from_scene(cls, scene: Scene) -> Plan:
+        """Plan the scene's path (inverse kinematics and cubics only, no simulation)."""
+        from bwr_twin.planning.trajectory import Trajectory
+
+        machine = Machine(scene.machine.mjcf)
+        try:
+            trajectory = Trajectory.plan(scene.trajectory, machine)
+        except BwrError as exc:
+            raise type(exc)(f"{scene.path}: {exc}") from None
+        period = scene.simulation.record_period
+        time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
+        q_desired, qd_desired, _ = trajectory.sample(time)
+        return cls(
+            machine=machine,
+            title=scene.path.name,
+            time=time,
+            q_desired=q_desired,
+            qd_desired=qd_desired,
+            cp_desired=machine.fk(q_desired),
+            via_times=trajectory.times,
+            via_points=trajectory.points,
+        )
+
+
+@dataclass(frozen=True)
+class Instant:
+    """The state at one time, interpolated between records. SI units, world coordinates."""
+
+    time: float  # s
+    q_desired: np.ndarray  # (3,) m, rad, rad
+    q_actual: np.ndarray
+    cp_desired: np.ndarray  # (3,) m
+    cp_actual: np.ndarray
+
+    @property
+    def q_error(self) -> np.ndarray:
+        """Desired minus actual (the sign of the metrics, docs/contracts.md)."""
+        return self.q_desired - self.q_actual
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A finished run: its plan plus what the machine actually did."""
+
+    plan: Plan
+    q_actual: np.ndarray  # (n, 3) m, rad, rad
+    qd_actual: np.ndarray  # (n, 3) m/s, rad/s, rad/s
+    cp_actual: np.ndarray  # (n, 3) m
+
+    @property
+    def q_error(self) -> np.ndarray:
+        """Desired minus actual, (n, 3) in m, rad, rad (the sign of the metrics, docs/contracts.md)."""
+        return self.plan.q_desired - self.q_actual
+
+    @property
+    def qd_error(self) -> np.ndarray:
+        """Desired minus actual velocity, (n, 3) in m/s, rad/s, rad/s."""
+        return self.plan.qd_desired - self.qd_actual
+
+    def at(self, t: float) -> Instant:
+        """The state at time t (s), linear between records, held at the ends."""
+        time = self.plan.time
+        k = int(np.clip(np.searchsorted(time, t, side="right") - 1, 0, len(time) - 2))
+        s = float(np.clip((t - time[k]) / (time[k + 1] - time[k]), 0.0, 1.0))
+
+        def blend(series: np.ndarray) -> np.ndarray:
+            return (1.0 - s) * series[k] + s * series[k + 1]
+
+        return Instant(
+            time=float(np.clip(t, time[0], time[-1])),
+            q_desired=blend(self.plan.q_desired),
+            q_actual=blend(self.q_actual),
+            cp_desired=blend(self.plan.cp_desired),
+            cp_actual=blend(self.cp_actual),
+        )
+
+    @classmethod
+    def from_run_dir(cls, run_dir: str | Path) -> Recording:
+        """Read a run directory written by `python -m bwr_twin.run` (or `results.write_run`)."""
+        from bwr_twin.results.rundir import SCENE_FILE, TIMESERIES_FILE, read_timeseries
+
+        run_dir = Path(run_dir)
+        missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
+        if missing:
+            raise BwrError(f"{run_dir}: not a run directory of bwr_twin.run (no {', '.join(missing)})")
+        try:
+            scene = json.loads((run_dir / SCENE_FILE).read_text())
+            columns = read_timeseries(run_dir / TIMESERIES_FILE)
+            machine = Machine(scene["machine"]["mjcf"])
+            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name)
+        except (ValueError, OSError) as exc:
+            raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
+        except KeyError as exc:
+            raise BwrError(
+                f"{run_dir}: incomplete run directory: no {exc} in {SCENE_FILE} or {TIMESERIES_FILE}"
+            ) from None
+
+    @classmethod
+    def from_result(cls, result: RunResult) -> Recording:
+        """A `RunResult` as its run directory would hold it."""
+        from bwr_twin.results.rundir import timeseries_columns
+
+        names, values = timeseries_columns(result)
+        columns = dict(zip(names, values.T))
+        return cls._from_columns(
+            columns, result.scene.to_dict(), result.machine, title=result.scene.path.name
+        )
+
+    @classmethod
+    def _from_columns(
+        cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str
+    ) -> Recording:
+        from bwr_twin.results.rundir import column_name
+
+        def joints(stem: str) -> np.ndarray:
+            return np.column_stack([columns[column_name(stem, j)] for j in range(len(AXES))])
+
+        def cp(kind: str) -> np.ndarray:
+            return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
+
+        path = scene["trajectory"]
+        via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
+        if path["frame"] == "paper":
+            via_points = paper_to_world(via_points)
+        plan = Plan(
+            machine=machine,
+            title=title,
+            time=columns["time_s"],
+            q_desired=joints("q_desired"),
+            qd_desired=joints("qd_desired"),
+            cp_desired=cp("desired"),
+            via_times=np.array([v["t"] for v in path["via_points"]], dtype=float),
+            via_points=via_points,
+        )
+        return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"))
+
+
+def decimate(time: np.ndarray, step: float) -> np.ndarray:
+    """Indices of samples about `step` seconds apart, always including the last."""
+    every = max(1, round(step / float(np.median(np.diff(time))))) if len(time) > 1 else 1
+    indices = np.arange(0, len(time), every)
+    return indices if indices[-1] == len(time) - 1 else np.append(indices, len(time) - 1)
+
+
+def cache_key(scene: Scene) -> str:
+    """A digest of everything that decides a run: the resolved scene, both compiled models
+    (includes and meshes too), the rule base and the package's simulation code."""
+    digest = hashlib.sha256()
+    settings = scene.to_dict()
+    settings.pop("path")  # where the scene file lives does not change the run
+    digest.update(json.dumps(settings, sort_keys=True).encode())
+    for mjcf in (scene.machine.mjcf, scene.controller_mjcf):
+        model = mujoco.MjModel.from_xml_path(str(mjcf))
+        compiled = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+        mujoco.mj_saveModel(model, None, compiled)
+        digest.update(compiled.tobytes())
+    digest.update(Path(scene.controller.rule_base).read_bytes())
+    for source in sorted(path for folder in _SIMULATION_CODE for path in folder.rglob("*.py")):
+        digest.update(source.read_bytes())
+    return digest.hexdigest()[:16]

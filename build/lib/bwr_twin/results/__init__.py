@@ -1,0 +1,1 @@
+"""Results: records and online metrics of a run, run directories, figures."""

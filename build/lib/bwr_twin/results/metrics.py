@@ -1,0 +1,129 @@
+"""A run's metrics, computed online at the control period for every run of a lockstep.
+
+metrics.json (the output contract, docs/contracts.md) holds per axis the error maxima with their
+sign and time, the RMS position error, drive forces and the time spent beyond the drive limits;
+error = desired - actual, and a "max" is the value of largest magnitude (sign kept; the first
+one on ties). Everything is accumulated per run in a fixed order, so a run's metrics do not
+depend on which runs share its lockstep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bwr_twin.model.machine import AXES, UNITS, to_display
+
+UNITS_NOTE = {
+    "travel": "m, m/s, m/s^2, N",
+    "slew": "rad, rad/s, rad/s^2, N m",
+    "luff": "rad, rad/s, rad/s^2, N m",
+    "cp_error_max": "m",
+    "times": "s",
+}
+
+
+class SignedMax:
+    """The value of largest magnitude seen so far, its sign kept, and the sample it came at."""
+
+    def __init__(self, shape: tuple[int, ...]):
+        self.value = np.zeros(shape)
+        self.index = np.zeros(shape, dtype=np.int64)
+        self._magnitude = np.full(shape, -1.0)
+        self._larger = np.zeros(shape, dtype=bool)
+        self._buffer = np.zeros(shape)
+
+    def add(self, k: int, x: np.ndarray) -> None:
+        magnitude, larger = self._buffer, self._larger
+        np.abs(x, out=magnitude)
+        np.greater(magnitude, self._magnitude, out=larger)  # strictly: the first of equal values stays
+        np.copyto(self.value, x, where=larger)
+        np.copyto(self._magnitude, magnitude, where=larger)
+        np.copyto(self.index, k, where=larger)
+
+
+class OnlineMetrics:
+    """Accumulates the metrics of every run of a lockstep, one control period at a time.
+
+    Every metric but the CP distance sees every control period; the CP distance, a slow signal
+    dominated by the travel error, is sampled at the record period.
+    """
+
+    # Columns of the (runs, 12) array `add` takes: errors (desired - actual) and applied forces.
+    POSITION, VELOCITY, ACCELERATION, FORCE = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+
+    def __init__(self, runs: int, drive_limits: np.ndarray):
+        self._limits = drive_limits  # (3, 2), N and N m
+        self._limited = bool(np.isfinite(drive_limits).any())
+        self._low, self._high = drive_limits[:, 0].copy(), drive_limits[:, 1].copy()
+        self._maxima = SignedMax((runs, 12))
+        self._cp = SignedMax((runs,))
+        self._squares = np.zeros((runs, 12))
+        self._square = np.zeros((runs, 12))
+        self._saturated = np.zeros((runs, 3), dtype=np.int64)
+        self._position_final = np.zeros((runs, 3))
+        self._samples = 0
+
+    def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray) -> None:
+        """Sample k, once its control period has ended: a (runs, 12) array of position,
+        velocity and acceleration errors and applied drive forces (columns POSITION, VELOCITY,
+        ACCELERATION, FORCE), and the (runs, 3) commanded forces."""
+        self._maxima.add(k, errors_and_forces)
+        np.multiply(errors_and_forces, errors_and_forces, out=self._square)
+        self._squares += self._square
+        if self._limited:
+            self._saturated += (command < self._low) | (command > self._high)
+        self._position_final[:] = errors_and_forces[:, self.POSITION]
+        self._samples += 1
+
+    def add_cp_error(self, k: int, cp_error: np.ndarray) -> None:
+        """Sample k's (runs,) distance of the CP from its desired position, m."""
+        self._cp.add(k, cp_error)
+
+    def result(self, run: int, time: np.ndarray) -> dict:
+        """metrics.json of run `run` (without its "run" block); `time` maps samples to s."""
+        metrics: dict = {}
+        n = self._samples
+        value, index = self._maxima.value[run], self._maxima.index[run]
+        rms = np.sqrt(self._squares[run] / n)
+        for j, axis in enumerate(AXES):
+            limit = self._limits[j]
+            p, v, a, f = j, 3 + j, 6 + j, 9 + j
+            metrics[axis] = {
+                "position_error_max": float(value[p]),
+                "position_error_max_time": float(time[index[p]]),
+                "velocity_error_max": float(value[v]),
+                "velocity_error_max_time": float(time[index[v]]),
+                "acceleration_error_max": float(value[a]),
+                "acceleration_error_max_time": float(time[index[a]]),
+                "position_error_rms": float(rms[p]),
+                "position_error_final": float(self._position_final[run, j]),
+                "drive_force_max": float(value[f]),
+                "drive_force_rms": float(rms[f]),
+                "drive_limit": [float(limit[0]), float(limit[1])] if np.isfinite(limit).any() else None,
+                "saturation_fraction": float(self._saturated[run, j] / n),
+            }
+        metrics["cp_error_max"] = float(self._cp.value[run])
+        metrics["cp_error_max_time"] = float(time[self._cp.index[run]])
+        metrics["units"] = dict(UNITS_NOTE)
+        return metrics
+
+
+def summary_table(metrics: dict) -> str:
+    """The maximum errors with their times, in engineering units (m, deg)."""
+    lines = [
+        f"{'axis':<7} {'position error max':>24} {'velocity error max':>26} {'acceleration error max':>30} {'pos. RMS':>12}"
+    ]
+    for j, axis in enumerate(AXES):
+        m = metrics[axis]
+        lines.append(
+            f"{axis:<7} {_largest(m, j, 'position', ''):>24} {_largest(m, j, 'velocity', '/s'):>26} "
+            f"{_largest(m, j, 'acceleration', '/s^2'):>30} {to_display(j, m['position_error_rms']):>9.4g} {UNITS[j]}"
+        )
+    lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
+    return "\n".join(lines)
+
+
+def _largest(axis_metrics: dict, j: int, kind: str, per: str) -> str:
+    """'+0.01812 m @ 204.1 s': the largest error of one kind, in engineering units, and its time."""
+    value, time = axis_metrics[f"{kind}_error_max"], axis_metrics[f"{kind}_error_max_time"]
+    return f"{to_display(j, value):+.4g} {UNITS[j]}{per} @ {time:5.1f} s"

@@ -1,0 +1,155 @@
+"""What a run leaves behind: metrics, a self-describing time series and the run's settings,
+written into a directory that appears only when complete.
+
+Layout of a run directory (the output contract of docs/contracts.md, plus more):
+    metrics.json      per-axis error maxima (signed), their times, RMS, drive saturation
+    timeseries.csv    every signal at the record period; units in the column names
+    scene.json        the resolved scene, so the run can be replayed without its files' paths
+    *.png             the paper's figures for this run (bwr_twin.results.plots)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from bwr_twin.errors import BwrError
+from bwr_twin.model.machine import AXES
+from bwr_twin.results.record import RunResult
+
+METRICS_FILE = "metrics.json"
+TIMESERIES_FILE = "timeseries.csv"
+SCENE_FILE = "scene.json"
+
+# Unit of each signal kind per axis: travel is linear, slew and luff are angular.
+_SI_UNITS = {
+    "q": ("m", "rad", "rad"),
+    "qd": ("m/s", "rad/s", "rad/s"),
+    "qdd": ("m/s2", "rad/s2", "rad/s2"),
+    "force": ("N", "Nm", "Nm"),
+    "1": ("1", "1", "1"),
+}
+# (column stem, RunResult attribute, unit kind)
+_SIGNALS = (
+    ("q_desired", "q_desired", "q"),
+    ("q_actual", "q", "q"),
+    ("q_measured", "q_measured", "q"),
+    ("qd_desired", "qd_desired", "qd"),
+    ("qd_actual", "qd", "qd"),
+    ("qd_measured", "qd_measured", "qd"),
+    ("qdd_desired", "qdd_desired", "qdd"),
+    ("qdd_actual", "qdd", "qdd"),
+    ("fuzzy_output", "fuzzy_output", "1"),
+    ("acceleration_command", "acceleration_command", "qdd"),
+    ("drive_force_command", "drive_force_command", "force"),
+    ("drive_force", "drive_force", "force"),
+    ("disturbance", "disturbance", "force"),
+)
+
+
+_KIND = {stem: kind for stem, _, kind in _SIGNALS}
+
+
+def column_name(stem: str, axis: int) -> str:
+    """The timeseries.csv column of one signal of one axis: column_name("qd_actual", 1) is
+    'slew_qd_actual_rad/s'."""
+    return f"{AXES[axis]}_{stem}_{_SI_UNITS[_KIND[stem]][axis]}"
+
+
+def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
+    """Column names (with units) and values of the recorded time series, at the record period."""
+    names, columns = ["time_s"], [result.time]
+    for stem, attribute, _ in _SIGNALS:
+        values = getattr(result, attribute)
+        for j in range(len(AXES)):
+            names.append(column_name(stem, j))
+            columns.append(values[:, j])
+    for label, cp in (("desired", result.cp_desired), ("actual", result.cp)):
+        for c, coordinate in enumerate("xyz"):
+            names.append(f"cp_{label}_{coordinate}_m")
+            columns.append(cp[:, c])
+    names.append("wind_speed_m/s")
+    columns.append(result.wind_speed)
+    return names, np.column_stack(columns)
+
+
+def read_timeseries(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a timeseries.csv back into {column name: array}."""
+    path = Path(path)
+    with open(path) as f:
+        names = f.readline().strip().split(",")
+    values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {name: values[:, i] for i, name in enumerate(names)}
+
+
+def _umask() -> int:
+    """The process's umask: reading it means setting it, so it is set back at once."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """Call write(temporary path), then rename the file into place; no partial file is left."""
+    temporary = path.parent / f".{path.name}.partial-{os.getpid()}"
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def staged_directory(out_dir: Path, *, overwrite: bool = False) -> Iterator[Path]:
+    """A temporary sibling of `out_dir` that is renamed into place only if the block succeeds.
+
+    An existing `out_dir` is refused (BwrError) unless `overwrite`; then it is replaced only
+    after the new one is complete. On any failure the temporary directory is removed and
+    `out_dir` is untouched.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not overwrite:
+        raise BwrError(f"{out_dir}: already exists; choose another --out or pass --overwrite")
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
+    try:
+        staging.chmod(0o777 & ~_umask())  # mkdtemp's 0700 would make results private
+        yield staging
+        if out_dir.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
+            os.replace(out_dir, old / out_dir.name)
+            os.replace(staging, out_dir)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(staging, out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+def write_run(
+    result: RunResult,
+    out_dir: str | Path,
+    *,
+    overwrite: bool = False,
+    plots: bool = True,
+) -> dict:
+    """Write a run directory atomically; returns the metrics."""
+    metrics = result.metrics
+    with staged_directory(Path(out_dir), overwrite=overwrite) as staging:
+        names, values = timeseries_columns(result)
+        np.savetxt(staging / TIMESERIES_FILE, values, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+        (staging / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n")
+        (staging / SCENE_FILE).write_text(json.dumps(result.scene.to_dict(), indent=2) + "\n")
+        if plots:
+            from bwr_twin.results.plots import save_run_figures
+
+            save_run_figures(result, staging)
+    return metrics

@@ -1,0 +1,35 @@
+"""The files the package ships: machine models, scenes, sweeps and rule bases.
+
+They are found through the installed package, so a command works from any folder and from a
+non-editable install. A scene or sweep on the command line is a file path, or the name of a
+shipped one: `paper_individual_gains`, `sweeps/paper_monte_carlo`.
+"""
+
+from __future__ import annotations
+
+from importlib.resources import files
+from pathlib import Path
+
+from bwr_twin.errors import SceneError
+
+PACKAGE = Path(str(files("bwr_twin")))
+MJCF = PACKAGE / "mjcf"
+SCENES = PACKAGE / "scenes"
+RULE_BASES = SCENES / "rulebases"
+DEFAULT_SCENE = SCENES / "paper_individual_gains.toml"
+
+
+def find_scene(text: str | Path) -> Path:
+    """A scene or sweep file: the path itself if it exists, else the shipped file of that name.
+
+    Raises SceneError listing the shipped scenes if neither exists.
+    """
+    path = Path(text)
+    if path.exists():
+        return path
+    for candidate in (SCENES / path, SCENES / f"{path}.toml"):
+        if candidate.is_file():
+            return candidate
+    shipped = ", ".join(sorted(str(p.relative_to(SCENES).with_suffix("")) for p in SCENES.rglob("*.toml")
+                               if p.parent.name != "rulebases"))
+    raise SceneError(f"{text}: scene file not found, nor a shipped scene or sweep of that name (shipped: {shipped})")

@@ -1,0 +1,121 @@
+"""The plant: the machines as they really are, one per run, and the only owner of their state.
+
+All runs of a lockstep step together through one `mujoco.batch.Batch` of a physics-only copy of
+the machine, on threads that release the GIL. Per-run values go into per-simulation model
+fields (`Batch.expand`), never into the shared model: friction loss (`dof_frictionloss`), wind
+(`opt.wind`) and air density (`opt.density`, zero for a run without wind, so that still air
+costs no drag). The drive forces go through the actuators, which honour their force limits;
+disturbance forces enter through `qfrc_applied`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Sequence
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch
+from mujoco.batch import SimulationError as BatchError
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.model.machine import Machine
+
+# What MuJoCo's warnings mean, for messages (mjtWarning order).
+_WARNINGS = {
+    mujoco.mjtWarning.mjWARN_INERTIA: "a body's inertia is too small",
+    mujoco.mjtWarning.mjWARN_CONTACTFULL: "too many contacts",
+    mujoco.mjtWarning.mjWARN_CNSTRFULL: "too many constraints",
+    mujoco.mjtWarning.mjWARN_BADQPOS: "bad joint positions",
+    mujoco.mjtWarning.mjWARN_BADQVEL: "bad joint velocities",
+    mujoco.mjtWarning.mjWARN_BADQACC: "bad joint accelerations",
+    mujoco.mjtWarning.mjWARN_BADCTRL: "bad controls",
+}
+
+
+class Plant:
+    """Steps every run's machine one control period at a time under zero-order-hold forces.
+
+    Attributes:
+        qpos, qvel: live (runs, 3) views of the true joint state (m, rad; m/s, rad/s).
+        drive_force: (runs, 3) forces the actuators applied in the last period (N, N m).
+        failures: run index -> why it stopped (MuJoCo's error or warning, or a non-finite state);
+            a failed run is no longer stepped, the others go on.
+    """
+
+    def __init__(self, machine: Machine, scenes: Sequence[Scene], q0: np.ndarray, *, nthread: int = 0):
+        sim = scenes[0].simulation
+        runs = len(scenes)
+        self.batch = batch = Batch(machine.physics_model(sim.timestep), runs, nthread=nthread)
+        self.qpos = batch.bind("qpos")
+        self.qvel = batch.bind("qvel")
+        self._ctrl = batch.bind("ctrl")
+        self._applied = batch.bind("qfrc_applied")
+        self.drive_force = batch.bind("qfrc_actuator")
+        ids = list(machine.actuator_ids)
+        # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
+        self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
+        self._gear = machine.model.actuator_gear[ids, 0].copy()
+        self._substeps = round(sim.control_period / sim.timestep)
+
+        if any(s.plant.frictionloss is not None for s in scenes):
+            frictionloss = batch.expand("dof_frictionloss")
+            for run, scene in enumerate(scenes):
+                if scene.plant.frictionloss is not None:
+                    frictionloss[run] = scene.plant.frictionloss
+        windy = np.array([bool(s.plant.wind_speed or s.plant.gust_amplitude) for s in scenes])
+        self._wind = None
+        if windy.any():
+            batch.expand("opt.density")[:] = np.where(windy, [s.plant.air_density for s in scenes], 0.0)
+            self._wind = batch.expand("opt.wind")
+            heading = np.radians([s.plant.wind_direction for s in scenes])
+            self._wind_direction = np.stack([np.cos(heading), np.sin(heading), np.zeros(runs)], axis=1)
+            self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
+
+        self._warning_counts = batch.warning[:, :, 1]  # (runs, warning kinds), live
+        self.qpos[:] = q0
+        batch.forward()
+        self.failures: dict[int, str] = {}
+        self.alive: np.ndarray | None = None  # indices of the runs still stepped; None: all
+
+    def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
+        """Hold the (runs, 3) drive forces and disturbances, and each run's (runs,) gust on its
+        mean wind, for one control period."""
+        self._ctrl[:, self._actuators] = drive_force / self._gear
+        self._applied[:] = disturbance
+        if self._wind is not None:
+            self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
+        try:
+            self.batch.step(self.alive, nstep=self._substeps)
+        except BatchError as exc:
+            for run in exc.ids:
+                self._fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
+        if self._warning_counts.any():  # cheap each period, so a failure's time is exact
+            self.check_health()
+
+    def check_health(self) -> None:
+        """Fail the runs that MuJoCo warned about (it resets a diverged state) or whose state is
+        not finite."""
+        warned = self._warning_counts > 0
+        finite = np.isfinite(self.qpos).all(axis=1) & np.isfinite(self.qvel).all(axis=1)
+        for run in np.flatnonzero(warned.any(axis=1) | ~finite):
+            if run in self.failures:
+                continue
+            kinds = [_WARNINGS.get(mujoco.mjtWarning(w), mujoco.mjtWarning(w).name) for w in np.flatnonzero(warned[run])]
+            self._fail(int(run), f"MuJoCo: {', '.join(kinds)}" if kinds else "non-finite state")
+
+    def _fail(self, run: int, reason: str) -> None:
+        self.failures[run] = f"{reason}, near t = {self.batch.time[run]:.2f} s"
+        self.alive = np.array([r for r in range(self.batch.nsim) if r not in self.failures], dtype=np.int64)
+
+
+@contextlib.contextmanager
+def mujoco_warnings() -> Iterator[list[str]]:
+    """Collect MuJoCo's warning texts instead of letting MuJoCo print them and write a log file."""
+    previous = mujoco.get_mju_user_warning()
+    texts: list[str] = []
+    mujoco.set_mju_user_warning(texts.append)
+    try:
+        yield texts
+    finally:
+        mujoco.set_mju_user_warning(previous)
