@@ -7,6 +7,7 @@ import csv
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -227,6 +228,24 @@ def test_kill_9_then_rerun_gives_the_uninterrupted_result(short_batch, tmp_path)
     rerun = batch_cli(sweep, "--out", out, "--plots")
     assert rerun.returncode == 0, rerun.stderr
     assert f"({len(survivors)} already done, skipped)" in rerun.stdout
+    same_results(out, reference)
+    assert not debris(out)
+
+
+def test_a_damaged_run_is_run_again_and_said_so(short_batch, tmp_path):
+    sweep, reference, _ = short_batch
+    out = tmp_path / "damaged"
+    shutil.copytree(reference, out)
+    for name in run_dirs(out):  # the reference was run with --plots; this re-run writes none
+        for figure in (out / name).glob("*.png"):
+            figure.unlink()
+    first, second = run_dirs(out)[:2]
+    (out / first / "metrics.json").write_text('{"travel": ')  # cut short
+    (out / second / "metrics.json").unlink()
+    proc = batch_cli(sweep, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "note: 2 run directories" in proc.stderr and "running them again" in proc.stderr
+    assert "(2 already done, skipped)" in proc.stdout and "Traceback" not in proc.stderr
     same_results(out, reference)
     assert not debris(out)
 

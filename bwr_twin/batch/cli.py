@@ -137,10 +137,16 @@ def existing_record(out_dir: Path, run: PlannedRun) -> RunRecord | None:
         keys = ", ".join(_differences(recorded, planned)[:3])
         raise BwrError(f"{folder}: was run with other settings ({keys}) than this sweep plans; "
                        "choose another --out")
-    if (folder / METRICS_FILE).is_file():
-        return RunRecord("ok", metrics=json.loads((folder / METRICS_FILE).read_text()))
-    lines = (folder / ERROR_FILE).read_text().splitlines() if (folder / ERROR_FILE).is_file() else []
-    return RunRecord("failed", lines[0] if lines else "no error recorded")
+    if (folder / ERROR_FILE).is_file():
+        lines = (folder / ERROR_FILE).read_text(errors="replace").splitlines()
+        return RunRecord("failed", lines[0] if lines else "no error recorded")
+    try:
+        metrics = json.loads((folder / METRICS_FILE).read_text())
+        if not isinstance(metrics, dict):
+            raise ValueError("not an object")
+    except (OSError, ValueError):  # damaged after the batch wrote it: the run is done again
+        return RunRecord("pending", f"{METRICS_FILE} missing or unreadable")
+    return RunRecord("ok", metrics=metrics)
 
 
 def _differences(recorded: Any, planned: Any, where: str = "") -> list[str]:
@@ -162,6 +168,14 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
     records = {run.run_id: existing_record(out_dir, run) or RunRecord("pending") for run in sweep.runs}
     todo = [run for run in sweep.runs if records[run.run_id].status == "pending"
             or (retry_failed and records[run.run_id].status == "failed")]
+    # Run directories to replace: failed ones retried, and damaged ones (pending with a reason).
+    replace = {run.run_id for run in todo if records[run.run_id].error}
+    damaged = [run.run_id for run in todo if records[run.run_id].status == "pending" and records[run.run_id].error]
+    if damaged:
+        print(f"note: {len(damaged)} run directories in {out_dir} have no readable {METRICS_FILE} "
+              f"({damaged[0]}{', ...' if len(damaged) > 1 else ''}); running them again", file=sys.stderr)
+        for run_id in damaged:
+            records[run_id] = RunRecord("pending")
     _note_foreign_runs(out_dir, sweep)
     write_summary(out_dir, sweep, records)
     local_workers = min(workers or os.cpu_count() or 1, max(1, len(todo)))  # no more workers than runs
@@ -179,7 +193,7 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
 
                 for task, outcomes in engine.outcomes(locksteps, plots=plots, on_progress=on_progress):
                     for outcome in outcomes:
-                        _publish(out_dir, outcome, replace=retry_failed)
+                        _publish(out_dir, outcome, replace=outcome.run_id in replace)
                         records[outcome.run_id] = RunRecord(outcome.status, outcome.error, outcome.metrics)
                         if outcome.status != "ok":
                             bar.write(f"{outcome.status}: {outcome.run_id}: {outcome.error}", file=sys.stderr)
