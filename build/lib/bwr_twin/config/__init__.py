@@ -1,1 +1,0 @@
-"""Configuration: scene files (typed, validated, with `extends` and overrides) and sweep files."""

@@ -1,1 +1,0 @@
-"""Control: the fuzzy rule base and its surface, the controller's belief (M, bias), the control law."""

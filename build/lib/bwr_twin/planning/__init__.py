@@ -1,1 +1,0 @@
-"""Planning: the desired joint trajectory through the scene's via points."""

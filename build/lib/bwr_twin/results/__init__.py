@@ -1,1 +1,0 @@
-"""Results: records and online metrics of a run, run directories, figures."""
