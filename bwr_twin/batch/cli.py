@@ -170,7 +170,7 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
             or (retry_failed and records[run.run_id].status == "failed")]
     # Run directories to replace: failed ones retried, and damaged ones (pending with a reason).
     replace = {run.run_id for run in todo if records[run.run_id].error}
-    damaged = [run.run_id for run in todo if records[run.run_id].status == "pending" and records[run.run_id].error]
+    damaged = [run.run_id for run in todo if run.run_id in replace and records[run.run_id].status == "pending"]
     if damaged:
         print(f"note: {len(damaged)} run directories in {out_dir} have no readable {METRICS_FILE} "
               f"({damaged[0]}{', ...' if len(damaged) > 1 else ''}); running them again", file=sys.stderr)

@@ -54,7 +54,6 @@ class OnlineMetrics:
     def __init__(self, runs: int, drive_limits: np.ndarray):
         self._limits = drive_limits  # (3, 2), N and N m
         self._limited = bool(np.isfinite(drive_limits).any())
-        self._low, self._high = drive_limits[:, 0].copy(), drive_limits[:, 1].copy()
         self._maxima = SignedMax((runs, 12))
         self._cp = SignedMax((runs,))
         self._squares = np.zeros((runs, 12))
@@ -71,7 +70,7 @@ class OnlineMetrics:
         np.multiply(errors_and_forces, errors_and_forces, out=self._square)
         self._squares += self._square
         if self._limited:
-            self._saturated += (command < self._low) | (command > self._high)
+            self._saturated += (command < self._limits[:, 0]) | (command > self._limits[:, 1])
         self._position_final[:] = errors_and_forces[:, self.POSITION]
         self._samples += 1
 
