@@ -1,7 +1,7 @@
 """Run one scene headless and write its results.
 
     python -m bwr_twin.run paper_individual_gains --out out/individual
-    python -m bwr_twin.run SCENE --out DIR [--model MJCF] [--seed N] [--overwrite] [--no-plots]
+    python -m bwr_twin.run SCENE --out DIR [--model MJCF] [--seed N] [--overwrite] [--no-plots] [--force]
 
 SCENE is a scene file, or the name of a shipped one (bwr_twin/scenes/).
 
@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from bwr_twin.errors import BwrError
+from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 
 def scene_overrides(model: str | None = None, seed: int | None = None) -> dict:
@@ -60,20 +61,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", help="machine MJCF replacing the scene's (and the controller's belief, "
                         "unless the scene names one)")
     parser.add_argument("--seed", type=int, help="disturbance seed replacing the scene's")
-    parser.add_argument("--overwrite", action="store_true", help="replace DIR if it exists, once the new run is complete")
+    parser.add_argument("--overwrite", action="store_true", help="replace DIR, a run directory the twin wrote, once the new run is complete")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument("--force", action="store_true", help=FORCE_HELP)
     args = parser.parse_args(argv)
 
     from bwr_twin.config.scene import load_scene
     from bwr_twin.results.metrics import summary_table
+    from bwr_twin.results.ownership import check_output
     from bwr_twin.results.rundir import write_run
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate
 
     try:
         scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
-        if args.out.exists() and not args.overwrite:
-            raise BwrError(f"{args.out}: already exists; choose another --out or pass --overwrite")
+        check_output(args.out, "run", overwrite=args.overwrite, inputs=scene.input_files)
+        cost = estimate([scene], plots=not args.no_plots)
+        check_estimate(cost, where=scene.path, out_dir=args.out, force=args.force)
         started = time.perf_counter()
         with simulation_progress_bar() as progress:
             result = simulate(scene, progress=progress)

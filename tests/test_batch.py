@@ -21,6 +21,7 @@ from bwr_twin.batch import BatchLock
 from bwr_twin.config.sweep import load_sweep
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
+from bwr_twin.results.ownership import MARKER_FILE
 
 # Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
 FAR_VIA_POINTS = [*SHORT_VIA_POINTS, {"t": 40.0, "p": [-55.0, -11.0, 2.0]}]
@@ -32,7 +33,7 @@ controller.output_gain.travel = [0.01, 0.02]
 BASE = 'scene = "short.toml"\n'  # sweep file texts, next to short.toml
 VARY = BASE + "[vary]\n"
 TIMESTEP = VARY + "simulation.timestep = "
-RUN_FILES = {"metrics.json", "timeseries.csv", "scene.json", "positions.png", "velocities.png",
+RUN_FILES = {".bwr_twin", "metrics.json", "timeseries.csv", "scene.json", "positions.png", "velocities.png",
              "accelerations.png", "fuzzy_outputs.png", "errors_position.png", "errors_velocity.png",
              "errors_acceleration.png", "drive_forces.png", "cp_path.png"}
 
@@ -56,7 +57,7 @@ def run_dirs(out):
 
 
 def debris(out):
-    return [p.name for p in [*out.iterdir(), *out.glob("plots/*")] if p.name.startswith(".")]
+    return [p.name for p in [*out.iterdir(), *out.glob("plots/*")] if p.name.startswith(".") and p.name != MARKER_FILE]
 
 
 def summary_rows(out):
@@ -123,14 +124,14 @@ machine.mjcf = ["{mjcf}"]
         (TIMESTEP + "[]", r"'vary.simulation.timestep' is an empty list"),
         (TIMESTEP + "0.01", r"'vary.simulation.timestep' must be a list of values or a range"),
         (TIMESTEP + "{ start = 0.1, stop = 0.2 }", r"range '.*' needs exactly one of 'num' and 'step'"),
-        (TIMESTEP + "{ start = 0.1, stop = 0.2, step = -1 }", r"'vary.simulation.timestep.step' must be a number"),
+        (TIMESTEP + "{ start = 0.1, stop = 0.2, step = -1 }", r"'vary.simulation.timestep.step' must be a number > 0"),
         (TIMESTEP + "{ start = 0.1, stop = 0.2, num = 2, by = 1 }", r"unknown key 'vary.simulation.timestep.by'"),
         (VARY + "simulation.seed = [1, 2]", r"give the seeds as the top-level 'seeds'"),
         (VARY + '"controller.output_gain" = [[1.0, 1.0, 1.0]]\ncontroller.output_gain.travel = [0.1]',
          r"both 'controller.output_gain' and its axis"),
         (VARY + "simulation.colour = [1, 2]", r"short.toml: unknown key 'simulation.colour'"),
         (VARY + 'machine.mjcf = ["nowhere.xml"]', r"'machine.mjcf' names a file that does not exist"),
-        (VARY + 'controller.output_gain.travel = ["a"]', r"'controller.output_gain\[0\]' must be a number"),
+        (VARY + 'controller.output_gain.travel = ["a"]', r"'controller.output_gain\[0\]' must be a finite number"),
     ],
     ids=["unknown-key", "no-scene", "scene-missing", "seeds-zero", "seeds-twice", "empty-list", "not-a-list",
          "range-no-num", "range-step", "range-key", "seed-in-vary", "vector-and-axis", "scene-key", "mjcf",
@@ -305,7 +306,7 @@ def test_a_failed_run_is_recorded_and_the_others_go_on(tmp_path):
     assert ok["status"] == "ok" and ok["error"] == "" and ok["travel.position_error_max"]
     assert failed["status"] == "failed" and failed["travel.position_error_max"] == ""
     assert re.search(r"via point 3 \(t = 40 s\) .* exceeds the horizontal reach", failed["error"])
-    assert {p.name for p in (out / failed["run"]).iterdir()} == {"error.txt", "scene.json"}
+    assert {p.name for p in (out / failed["run"]).iterdir()} == {".bwr_twin", "error.txt", "scene.json"}
     assert failed["error"] in proc.stderr
 
     again = batch_cli(sweep, "--out", out, "--no-plots")  # deterministic: a failure is a result
@@ -323,7 +324,7 @@ def test_a_run_that_diverges_fails_alone_in_its_lockstep(tmp_path):
     first, diverged, third = summary_rows(out)
     assert first["status"] == third["status"] == "ok"
     assert diverged["status"] == "failed" and "the simulation diverged" in diverged["error"]
-    assert {p.name for p in (out / diverged["run"]).iterdir()} == {"error.txt", "scene.json"}
+    assert {p.name for p in (out / diverged["run"]).iterdir()} == {".bwr_twin", "error.txt", "scene.json"}
     alone = tmp_path / "alone"
     command = [sys.executable, "-m", "bwr_twin.run", sweep.parent / "short.toml", "--out", alone, "--no-plots"]
     assert subprocess.run(list(map(str, command)), cwd=ROOT, capture_output=True, check=False).returncode == 0

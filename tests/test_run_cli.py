@@ -82,15 +82,6 @@ def test_bad_input_exits_with_one_line_and_writes_nothing(tmp_path, edit, messag
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]
 
 
-def test_existing_output_is_left_untouched(tmp_path):
-    out = tmp_path / "out"
-    out.mkdir()
-    (out / "keep.txt").write_text("earlier results")
-    proc = run_cli(write_short_scene(tmp_path), "--out", out)
-    assert proc.returncode == 2 and "already exists" in proc.stderr
-    assert [p.name for p in out.iterdir()] == ["keep.txt"]
-
-
 def test_a_negative_seed_exits_2_naming_the_key(tmp_path):
     proc = run_cli(write_short_scene(tmp_path), "--out", tmp_path / "out", "--seed", "-1")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr

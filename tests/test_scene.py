@@ -49,7 +49,7 @@ def test_overrides_are_validated_like_the_file():
     ("plant.payload", [{"body": "boom", "mass": 1.0, "pos": [0.0, float("nan"), 0.0]}], "plant.payload[0].pos[1]"),
 ])
 def test_numbers_that_are_not_numbers_are_refused_naming_the_key(key, value, named):
-    with pytest.raises(SceneError, match=rf"'{re.escape(named)}' must be a number, got (nan|inf|-inf)"):
+    with pytest.raises(SceneError, match=rf"'{re.escape(named)}' must be a finite number, got (nan|inf|-inf)"):
         load_scene(INDIVIDUAL, {key: value})
 
 
@@ -68,10 +68,10 @@ def test_numbers_that_are_not_numbers_are_refused_naming_the_key(key, value, nam
         ("velocity_source = \"true\"", "velocity_source = true", r"'encoders.velocity_source' must be one of"),
         ("acceleration_feedforward = false", 'acceleration_feedforward = false\nvelocity_filter = 0.1',
          r"'controller.velocity_filter' has moved: write it as 'encoders.velocity_filter'"),
-        ("timestep = 0.002", "timestep = inf", r"'simulation.timestep' must be a number, got inf"),
+        ("timestep = 0.002", "timestep = inf", r"'simulation.timestep' must be a finite number, got inf"),
         ("amplitude = [100.0, 100.0, 100.0]", "amplitude = [100.0, nan, 100.0]",
-         r"'disturbance.amplitude\[1\]' must be a number, got nan"),
-        ("t = 300.0", "t = inf", r"'path.via_points\[2\].t' must be a number, got inf"),
+         r"'disturbance.amplitude\[1\]' must be a finite number, got nan"),
+        ("t = 300.0", "t = inf", r"'path.via_points\[2\].t' must be a finite number, got inf"),
         ("seed = 1", "seed = -3", r"'simulation.seed' must be >= 0, got -3"),
         ("record_period = 0.1", "record_period = 0.015",
          r"'simulation.record_period' \(0.015 s\) must be a whole multiple of 'simulation.control_period' \(0.01 s\)"),

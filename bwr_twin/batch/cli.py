@@ -3,7 +3,7 @@ resumably.
 
     python -m bwr_twin.batch sweeps/paper_monte_carlo --out out/mc
     python -m bwr_twin.batch SWEEP --out DIR [--workers N | --scheduler tcp://HOST:PORT]
-                             [--chunk RUNS] [--plots] [--retry-failed]
+                             [--chunk RUNS] [--plots] [--retry-failed] [--force]
 
 SWEEP is a sweep file, or the name of a shipped one (bwr_twin/scenes/sweeps/).
 
@@ -27,6 +27,7 @@ run, 2 bad input or DIR in use (nothing run), 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import fcntl
 import json
 import math
@@ -34,7 +35,6 @@ import os
 import shutil
 import signal
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -44,13 +44,14 @@ from tqdm import tqdm
 
 from bwr_twin.batch.engines import ERROR_FILE, DaskCluster, LocalPool, Outcome
 from bwr_twin.batch.report import PLOTS_DIR, SUMMARY_FILE, RunRecord, spread_table, write_plots, write_summary
-from bwr_twin.config.sweep import PlannedRun, Sweep, load_sweep
+from bwr_twin.config.sweep import MAX_RUNS, PlannedRun, Sweep, load_sweep
 from bwr_twin.errors import BwrError
-from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, staged_directory
+from bwr_twin.results.ownership import BATCH_LOCK_FILE, check_output, mark, marker
+from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, publish_directory, staged_directory
 from bwr_twin.shipped import find_scene
+from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 from bwr_twin.sim.lockstep import lockstep_key
 
-LOCK_FILE = ".lock"
 STAGING_PATTERNS = (".*.partial-*", ".*.old-*")  # temporary names; staged_directory's too
 SUMMARY_EVERY_S = 2.0  # s between rewrites of summary.csv while runs complete
 MAX_CHUNK = 128  # runs a lockstep by default: 700 s records of 128 runs take about 300 MB
@@ -60,7 +61,7 @@ class BatchLock:
     """An exclusive flock on DIR/.lock for the batch's life; the kernel drops it if we die."""
 
     def __init__(self, out_dir: Path):
-        self.path = out_dir / LOCK_FILE
+        self.path = out_dir / BATCH_LOCK_FILE
 
     def __enter__(self) -> BatchLock:
         try:
@@ -161,11 +162,12 @@ def _differences(recorded: Any, planned: Any, where: str = "") -> list[str]:
 
 
 def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: str | None, plots: bool,
-              retry_failed: bool, chunk: int | None = None) -> int:
+              retry_failed: bool, chunk: int | None = None, force: bool = False) -> int:
     """Run what is not done yet and summarise; the caller holds the lock. Returns the exit status."""
     started = time.perf_counter()
-    remove_debris(out_dir)
     records = {run.run_id: existing_record(out_dir, run) or RunRecord("pending") for run in sweep.runs}
+    check_sweep_owns(out_dir, sweep)  # after the records: a run done differently is named first
+    remove_debris(out_dir)
     todo = [run for run in sweep.runs if records[run.run_id].status == "pending"
             or (retry_failed and records[run.run_id].status == "failed")]
     # Run directories to replace: failed ones retried, and damaged ones (pending with a reason).
@@ -176,15 +178,18 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
               f"({damaged[0]}{', ...' if len(damaged) > 1 else ''}); running them again", file=sys.stderr)
         for run_id in damaged:
             records[run_id] = RunRecord("pending")
-    _note_foreign_runs(out_dir, sweep)
-    write_summary(out_dir, sweep, records)
     local_workers = min(workers or os.cpu_count() or 1, max(1, len(todo)))  # no more workers than runs
     engine = DaskCluster(scheduler) if scheduler else LocalPool(local_workers, out_dir)
     last_summary = time.monotonic()
     try:
         if todo:
-            with engine, _progress_bar(len(todo), sweep) as bar:
+            with engine, _progress_bar(len(todo), sweep) as bar:  # nothing is written if it cannot start
                 locksteps = plan_locksteps(todo, workers=engine.workers, chunk=chunk)
+                cost = estimate([run.scene for run in todo], workers=engine.workers,
+                                chunk=max(map(len, locksteps)), plots=plots)
+                check_estimate(cost, where=sweep.path, out_dir=out_dir, force=force)
+                claim(out_dir, sweep)
+                write_summary(out_dir, sweep, records)
                 shares = [0.0] * len(locksteps)
 
                 def on_progress(task: int, share: float) -> None:
@@ -202,7 +207,8 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
                         write_summary(out_dir, sweep, records)
                         last_summary = time.monotonic()
     except KeyboardInterrupt:
-        write_summary(out_dir, sweep, records)
+        if marker(out_dir) is not None:  # not before the batch has started
+            write_summary(out_dir, sweep, records)
         done = sum(record.status in ("ok", "failed") for record in records.values())
         print(f"interrupted: {done} of {len(sweep.runs)} runs complete and kept; "
               "run the same command to finish", file=sys.stderr)
@@ -223,13 +229,8 @@ def _publish(out_dir: Path, outcome: Outcome, *, replace: bool) -> None:
     """Move a finished run directory into DIR (a rename), or write it there from its files."""
     if outcome.folder is not None:
         target = out_dir / outcome.run_id
-        if target.exists() and replace:
-            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=out_dir))
-            os.replace(target, old / target.name)
-            os.replace(outcome.folder, target)
-            shutil.rmtree(old, ignore_errors=True)
-        elif not target.exists():
-            os.replace(outcome.folder, target)
+        if replace or not target.exists():
+            publish_directory(Path(outcome.folder), target)
         return
     if outcome.files:
         with staged_directory(out_dir / outcome.run_id, overwrite=replace) as staging:
@@ -237,12 +238,18 @@ def _publish(out_dir: Path, outcome: Outcome, *, replace: bool) -> None:
                 (staging / name).write_bytes(content)
 
 
-def _note_foreign_runs(out_dir: Path, sweep: Sweep) -> None:
-    planned = {run.run_id for run in sweep.runs}
-    foreign = [p for p in out_dir.iterdir() if p.is_dir() and p.name[:1].isdigit() and p.name not in planned]
-    if foreign:
-        print(f"note: {len(foreign)} run directories in {out_dir} are not in this sweep; "
-              "left alone, not summarised", file=sys.stderr)
+def check_sweep_owns(out_dir: Path, sweep: Sweep) -> None:
+    """Refuse a DIR that holds another sweep's results: re-running the same sweep resumes it."""
+    found = marker(out_dir)
+    if found is not None and found.get("plan") != sweep.digest():
+        raise BwrError(f"{out_dir}: holds the results of another sweep ({found.get('sweep')}, "
+                       f"{found.get('runs')} runs) than {sweep.path.name} plans; choose another --out")
+
+
+def claim(out_dir: Path, sweep: Sweep) -> None:
+    """Mark DIR as this sweep's results, once, before its first result lands."""
+    if marker(out_dir) is None:
+        mark(out_dir, "batch", sweep=sweep.path.name, runs=len(sweep.runs), plan=sweep.digest())
 
 
 def _progress_bar(total: int, sweep: Sweep) -> tqdm:
@@ -265,20 +272,29 @@ def main(argv: list[str] | None = None) -> int:
     plots.add_argument("--plots", action="store_true", help="write each run's PNG figures (about 3 s a run)")
     plots.add_argument("--no-plots", action="store_true", help="no per-run figures (the default)")
     parser.add_argument("--retry-failed", action="store_true", help="run the runs that failed before again")
+    parser.add_argument("--force", action="store_true", help=f"{FORCE_HELP}, or the sweep {MAX_RUNS} runs")
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers < 1:
         parser.error("--workers must be at least 1")
     if args.chunk is not None and args.chunk < 1:
         parser.error("--chunk must be at least 1")
     signal.signal(signal.SIGTERM, _interrupt)
+    created = not args.out.exists()
     try:
-        sweep = load_sweep(find_scene(args.sweep))
+        sweep = load_sweep(find_scene(args.sweep), max_runs=None if args.force else MAX_RUNS)
+        inputs = {sweep.path, *(file for run in sweep.runs for file in run.scene.input_files)}
+        check_output(args.out, "batch", inputs=inputs)
         with BatchLock(args.out):
             return run_batch(sweep, args.out, workers=args.workers, scheduler=args.scheduler,
-                             plots=args.plots, retry_failed=args.retry_failed, chunk=args.chunk)
+                             plots=args.plots, retry_failed=args.retry_failed, chunk=args.chunk,
+                             force=args.force)
     except (BwrError, OSError) as exc:  # OSError: DIR unwritable or full
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted: run the same command to resume", file=sys.stderr)
         return 130
+    finally:
+        if created:  # a batch that wrote nothing leaves no folder behind
+            with contextlib.suppress(OSError):
+                args.out.rmdir()

@@ -42,12 +42,13 @@ def write_summary(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) ->
         metric_columns.update(dict.fromkeys(metrics))
         parameters = {key: json.dumps(value) if isinstance(value, (list, dict)) else value
                       for key, value in run.parameters.items()}
+        limits = "; ".join((record.metrics or {}).get("limits", ()))
         rows.append({"run": run.run_id, **parameters, "seed": run.seed, "status": record.status,
-                     "error": record.error, **metrics})
+                     "error": record.error, "limits": limits, **metrics})
 
     def write(path: Path) -> None:
         with open(path, "w", newline="") as f:
-            writer = csv.DictWriter(f, ["run", *sweep.keys, "seed", "status", "error", *metric_columns])
+            writer = csv.DictWriter(f, ["run", *sweep.keys, "seed", "status", "error", "limits", *metric_columns])
             writer.writeheader()
             writer.writerows(rows)
 

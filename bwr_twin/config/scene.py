@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 import sys
 import types
@@ -112,6 +113,11 @@ class Scene:
     def controller_mjcf(self) -> Path:
         return self.machine.controller_mjcf or self.machine.mjcf
 
+    @property
+    def input_files(self) -> tuple[Path, ...]:
+        """The files this scene reads: nothing the twin writes may replace them."""
+        return (self.path, self.machine.mjcf, self.controller_mjcf, self.controller.rule_base)
+
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
         return _plain(dataclasses.asdict(self))
@@ -131,12 +137,27 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
             "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
     """
     path = Path(path)
-    raw = _read_raw(path, ())
+    raw = copy.deepcopy(_read_raw_once(path, _stamp(path)))
     for key, value in (overrides or {}).items():
         _set_dotted(raw, key, _resolve_paths(value, Path.cwd()) if _is_path_key(key) else value, path)
     scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
     _check_rules(scene)
     return scene
+
+
+def _stamp(path: Path) -> tuple:
+    """What tells a changed file from the one read before."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return ()
+    return (stat.st_mtime_ns, stat.st_size, stat.st_ino)
+
+
+@functools.lru_cache(maxsize=32)
+def _read_raw_once(path: Path, stamp: tuple) -> dict:
+    """_read_raw, once per version of a file: a sweep loads one base scene for every run."""
+    return _read_raw(path, ())
 
 
 def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
@@ -229,7 +250,7 @@ def _build(cls: type, table: Any, path: Path, where: str) -> Any:
     for key in table:
         if _join(where, key) in MOVED_KEYS:
             raise SceneError(f"{path}: '{_join(where, key)}' has moved: write it as '{MOVED_KEYS[_join(where, key)]}'")
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     shown = {_TABLES.get(n, n): n for n in fields}
     unknown = sorted(set(table) - set(fields))
@@ -247,6 +268,11 @@ def _build(cls: type, table: Any, path: Path, where: str) -> Any:
             continue
         kwargs[name] = _convert(hints[name], table[name], path, key)
     return cls(**kwargs)
+
+
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)  # evaluates the annotations' text: slow, and never changes
 
 
 def _join(where: str, key: str) -> str:
@@ -276,7 +302,7 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
         return tuple(_convert(a, v, path, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if hint is float:
         if not is_number(value):
-            raise SceneError(f"{path}: '{key}' must be a number, got {value!r}")
+            raise SceneError(f"{path}: '{key}' must be a finite number, got {value!r}")
         return float(value)
     if hint is int:
         if not is_integer(value):

@@ -20,10 +20,13 @@ run alone, at run time.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import json
 import math
 import re
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +46,8 @@ _TOP_LEVEL_KEYS = ("scene", "seeds", "vary")
 _RANGE_KEYS = ("start", "stop", "num", "step")
 _RANGE_DIGITS = 12  # significant digits kept of a range value: 0.1 + 0.2 gives 0.3
 _UNSAFE_IN_NAME = re.compile(r"[^A-Za-z0-9._=+#-]")
+MAX_RUNS = 20_000  # a sweep plans at most this many runs without --force (about 15 s of planning)
+PLANNABLE_RUNS = 1_000_000  # and never more: their plan alone would take gigabytes
 _MAX_SETTING_CHARS = 160  # of a run directory's name; the index keeps truncated names unique
 
 
@@ -68,6 +73,12 @@ class Sweep:
     keys: tuple[str, ...]  # varied scene keys in file order, without the seed
     runs: tuple[PlannedRun, ...]
 
+    def digest(self) -> str:
+        """sha256 of what the sweep plans, each run's name and scene: two sweeps with the same
+        digest write the same run directories."""
+        plan = [[run.run_id, run.scene.to_dict()] for run in self.runs]
+        return hashlib.sha256(json.dumps(plan, sort_keys=True).encode()).hexdigest()
+
     def grid_keys(self) -> tuple[str, str] | None:
         """The two keys of a 2-D grid of numbers (for a heat map), if that is what this sweep is."""
         if len(self.keys) != 2:
@@ -76,10 +87,11 @@ class Sweep:
         return (self.keys[0], self.keys[1]) if numeric else None
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Sweep:
     """Read and validate a sweep file and every scene it generates.
 
-    Raises SceneError naming the sweep file and the key at fault.
+    Raises SceneError naming the sweep file and the key at fault, or the count of runs if it
+    exceeds `max_runs` (None: only PLANNABLE_RUNS), before any is planned.
     """
     path = Path(path)
     raw = _read_toml(path)
@@ -101,8 +113,14 @@ def load_sweep(path: str | Path) -> Sweep:
     seeds = _seeds(raw["seeds"], path) if "seeds" in raw else [None]
 
     keys = tuple(varied)
-    combinations = list(itertools.product(*varied.values(), seeds))
-    width = max(4, len(str(len(combinations) - 1)))
+    count = math.prod(len(values) for values in varied.values()) * len(seeds)
+    limit = PLANNABLE_RUNS if max_runs is None else min(max_runs, PLANNABLE_RUNS)
+    if count > limit:
+        sizes = " x ".join(f"{len(values)} ({key})" for key, values in [*varied.items(), ("seeds", seeds)])
+        hint = "pass --force to plan it anyway" if limit < PLANNABLE_RUNS else "split it into several sweeps"
+        raise SceneError(f"{path}: expands to {count} runs = {sizes}, more than {limit}; {hint}")
+    combinations = itertools.product(*varied.values(), seeds)
+    width = max(4, len(str(count - 1)))
     runs = []
     for index, (*values, seed) in enumerate(combinations):
         parameters = dict(zip(keys, values))
@@ -163,9 +181,14 @@ def _varied(table: Any, path: Path, where: str) -> dict[str, list]:
 def _checked_list(values: list, path: Path, key: str) -> list:
     if not values:
         raise SceneError(f"{path}: '{key}' is an empty list: give at least one value")
-    for i, value in enumerate(values):
-        if value in values[:i]:
+    seen = set()
+    for value in values:
+        marker = json.dumps(value, sort_keys=True)  # hashable, and 1 == 1.0 as in the scene
+        if marker in seen or (is_number(value) and json.dumps(float(value)) in seen):
             raise SceneError(f"{path}: '{key}' lists {value!r} twice")
+        seen.add(marker)
+        if is_number(value):
+            seen.add(json.dumps(float(value)))
     return values
 
 
@@ -179,14 +202,14 @@ def _range(spec: dict[str, Any], path: Path, key: str) -> list[float]:
         if bound not in spec:
             raise SceneError(f"{path}: range '{key}' needs '{bound}'")
         if not is_number(spec[bound]):
-            raise SceneError(f"{path}: '{key}.{bound}' must be a number, got {spec[bound]!r}")
+            raise SceneError(f"{path}: '{key}.{bound}' must be a finite number, got {spec[bound]!r}")
     if ("num" in spec) == ("step" in spec):
         raise SceneError(f"{path}: range '{key}' needs exactly one of 'num' and 'step'")
     start, stop = float(spec["start"]), float(spec["stop"])
     if "num" in spec:
         num = spec["num"]
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise SceneError(f"{path}: '{key}.num' must be an integer >= 1, got {num!r}")
+        if isinstance(num, bool) or not isinstance(num, int) or not 1 <= num <= PLANNABLE_RUNS:
+            raise SceneError(f"{path}: '{key}.num' must be an integer from 1 to {PLANNABLE_RUNS}, got {num!r}")
         values = np.linspace(start, stop, num)
     else:
         step = spec["step"]
@@ -195,13 +218,16 @@ def _range(spec: dict[str, Any], path: Path, key: str) -> list[float]:
         if stop < start:
             raise SceneError(f"{path}: range '{key}' with a step needs stop >= start, got {start} > {stop}")
         count = math.floor((stop - start) / step + 1e-9) + 1  # 1e-9: keep a stop that lies on the grid
+        if count > PLANNABLE_RUNS:
+            raise SceneError(f"{path}: range '{key}' gives {count:.3g} values, more than a sweep can run "
+                             f"({PLANNABLE_RUNS}); check its step")
         values = start + step * np.arange(count)
     return [float(f"{v:.{_RANGE_DIGITS}g}") for v in values]
 
 
-def _seeds(value: Any, path: Path) -> list[int]:
+def _seeds(value: Any, path: Path) -> Sequence[int]:
     if is_integer(value) and value >= 1:
-        return list(range(1, value + 1))
+        return range(1, value + 1)  # counted before it is expanded
     if isinstance(value, list) and value and all(is_integer(v) and v >= 0 for v in value):
         return _checked_list(value, path, "seeds")
     raise SceneError(f"{path}: 'seeds' must be a count (an integer >= 1) or a list of integers >= 0, "

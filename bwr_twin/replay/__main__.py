@@ -23,7 +23,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bwr_twin.errors import BwrError
+from bwr_twin.replay.exposure import exposure_warning
+from bwr_twin.results.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
+from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 if TYPE_CHECKING:
     from bwr_twin.config.scene import Scene
@@ -59,6 +62,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--no-cache", action="store_true", help="simulate even if a cached run exists; cache nothing"
     )
+    parser.add_argument(
+        "--force", action="store_true", help=FORCE_HELP
+    )
     args = parser.parse_args(argv)
     # A terminated replay stops like an interrupted one: server down, simulating child ended.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
@@ -68,7 +74,11 @@ def main(argv: list[str] | None = None) -> int:
         from bwr_twin.replay.simulation import simulate_in_child
 
         recording, scene = _open(args.source, use_cache=not args.no_cache)
+        if recording is None:
+            check_estimate(estimate([scene]), where=scene.path, out_dir=Path("out"), force=args.force)
         if args.export is not None:
+            inputs = [args.source, *(scene.input_files if scene is not None else ())]
+            check_output(args.export, "export", inputs=inputs, option="--export")
             from bwr_twin.replay.export import export_html
 
             recording = recording or simulate_in_child(scene, use_cache=not args.no_cache)
@@ -84,6 +94,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.port not in (0, server.port):
             print(f"port {args.port} is busy; using {server.port}")
         print(f"replay at {server.url}  (Ctrl-C to stop)", flush=True)
+        exposure = exposure_warning(args.host, server.port)
+        if exposure:
+            print(exposure, file=sys.stderr, flush=True)
         if recording is None:
             server.load(simulate_in_child(scene, use_cache=not args.no_cache, progress=server.show_progress))
             print("simulation done: the timeline is ready", flush=True)

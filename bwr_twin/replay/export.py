@@ -19,6 +19,7 @@ from bwr_twin.errors import BwrError
 from bwr_twin.replay import readout
 from bwr_twin.replay.recording import Recording
 from bwr_twin.replay.view import SceneView
+from bwr_twin.results.ownership import HTML_TAG, check_output
 from bwr_twin.results.rundir import write_atomically
 
 EXPORT_SPEED = 10.0  # x real time
@@ -34,6 +35,7 @@ def export_html(
 ) -> int:
     """Write the recording's replay to `path` (atomically); returns the file size in bytes."""
     path = Path(path)
+    check_output(path, "export", option="--export")
     if not path.parent.is_dir():
         raise BwrError(f"{path}: the folder {path.parent} does not exist")
     with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner
@@ -43,6 +45,7 @@ def export_html(
     finally:
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
+    html = html.replace("<head>", f"<head>{HTML_TAG}", 1)  # how a later export knows it may replace this
     write_atomically(path, lambda partial: partial.write_text(html, encoding="utf-8"))
     return path.stat().st_size
 

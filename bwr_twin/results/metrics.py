@@ -51,8 +51,21 @@ class OnlineMetrics:
     # Columns of the (runs, 12) array `add` takes: errors (desired - actual) and applied forces.
     POSITION, VELOCITY, ACCELERATION, FORCE = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 
-    def __init__(self, runs: int, drive_limits: np.ndarray):
+    # What a run may not do, in the order of `limit_times`' first index: (metrics key, message).
+    LIMITS = (
+        ("left_envelope_time", "left the operating envelope"),
+        ("end_stop_time", "reached its mechanical end stop"),
+        ("beyond_drive_rating_time", "was commanded beyond its drive rating"),
+    )
+
+    def __init__(self, runs: int, drive_limits: np.ndarray, envelope: np.ndarray, end_stops: np.ndarray):
         self._limits = drive_limits  # (3, 2), N and N m
+        self._envelope = envelope  # (3, 2), m and rad
+        # An end stop is reached within 0.1 % of the joint's range of it: MuJoCo's stops are soft.
+        margin = 1e-3 * np.nan_to_num(end_stops[:, 1] - end_stops[:, 0], posinf=0.0)
+        self._stops = np.stack([end_stops[:, 0] + margin, end_stops[:, 1] - margin], axis=1)
+        self._first = np.full((runs, len(self.LIMITS), 3), -1, dtype=np.int64)  # sample, or -1: never
+        self._breach = np.zeros((runs, len(self.LIMITS), 3), dtype=bool)
         self._limited = bool(np.isfinite(drive_limits).any())
         self._maxima = SignedMax((runs, 12))
         self._cp = SignedMax((runs,))
@@ -62,15 +75,21 @@ class OnlineMetrics:
         self._position_final = np.zeros((runs, 3))
         self._samples = 0
 
-    def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray) -> None:
+    def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray, q: np.ndarray) -> None:
         """Sample k, once its control period has ended: a (runs, 12) array of position,
         velocity and acceleration errors and applied drive forces (columns POSITION, VELOCITY,
-        ACCELERATION, FORCE), and the (runs, 3) commanded forces."""
+        ACCELERATION, FORCE), the (runs, 3) commanded forces and the true joint positions."""
         self._maxima.add(k, errors_and_forces)
         np.multiply(errors_and_forces, errors_and_forces, out=self._square)
         self._squares += self._square
+        breach = self._breach
+        np.logical_or(q < self._envelope[:, 0], q > self._envelope[:, 1], out=breach[:, 0])
+        np.logical_or(q <= self._stops[:, 0], q >= self._stops[:, 1], out=breach[:, 1])
         if self._limited:
-            self._saturated += (command < self._limits[:, 0]) | (command > self._limits[:, 1])
+            np.logical_or(command < self._limits[:, 0], command > self._limits[:, 1], out=breach[:, 2])
+            self._saturated += breach[:, 2]
+        if breach.any():
+            np.copyto(self._first, k, where=breach & (self._first < 0))
         self._position_final[:] = errors_and_forces[:, self.POSITION]
         self._samples += 1
 
@@ -101,10 +120,20 @@ class OnlineMetrics:
                 "drive_limit": [float(limit[0]), float(limit[1])] if np.isfinite(limit).any() else None,
                 "saturation_fraction": float(self._saturated[run, j] / n),
             }
+            for i, (key, _) in enumerate(self.LIMITS):
+                first = self._first[run, i, j]
+                metrics[axis][key] = float(time[first]) if first >= 0 else None
+        metrics["limits"] = limit_flags(metrics)
         metrics["cp_error_max"] = float(self._cp.value[run])
         metrics["cp_error_max_time"] = float(time[self._cp.index[run]])
         metrics["units"] = dict(UNITS_NOTE)
         return metrics
+
+
+def limit_flags(metrics: dict) -> list[str]:
+    """'slew reached its mechanical end stop at 12.3 s', for every axis and limit a run broke."""
+    return [f"{axis} {message} at {metrics[axis][key]:.2f} s"
+            for axis in AXES for key, message in OnlineMetrics.LIMITS if metrics[axis].get(key) is not None]
 
 
 def summary_table(metrics: dict) -> str:
@@ -119,6 +148,7 @@ def summary_table(metrics: dict) -> str:
             f"{_largest(m, j, 'acceleration', '/s^2'):>30} {to_display(j, m['position_error_rms']):>9.4g} {UNITS[j]}"
         )
     lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
+    lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
 
 

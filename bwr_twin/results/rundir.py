@@ -22,6 +22,7 @@ import numpy as np
 
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
+from bwr_twin.results.ownership import check_output, mark
 from bwr_twin.results.record import RunResult
 
 METRICS_FILE = "metrics.json"
@@ -109,31 +110,43 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
 
 
 @contextlib.contextmanager
-def staged_directory(out_dir: Path, *, overwrite: bool = False) -> Iterator[Path]:
-    """A temporary sibling of `out_dir` that is renamed into place only if the block succeeds.
+def staged_directory(out_dir: Path, *, overwrite: bool = False, kind: str = "run") -> Iterator[Path]:
+    """A temporary sibling of `out_dir`, marked as the twin's `kind` of output, that is renamed
+    into place only if the block succeeds.
 
-    An existing `out_dir` is refused (BwrError) unless `overwrite`; then it is replaced only
-    after the new one is complete. On any failure the temporary directory is removed and
-    `out_dir` is untouched.
+    An existing `out_dir` is replaced only if the twin wrote it and `overwrite` is given
+    (bwr_twin.results.ownership), and only once the new one is complete. On any failure the
+    temporary directory is removed and `out_dir` is untouched.
     """
     out_dir = Path(out_dir)
-    if out_dir.exists() and not overwrite:
-        raise BwrError(f"{out_dir}: already exists; choose another --out or pass --overwrite")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
+    check_output(out_dir, kind, overwrite=overwrite)
+    try:
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
+    except OSError as exc:
+        raise BwrError(f"{out_dir}: cannot create it: {exc.strerror}") from None
     try:
         staging.chmod(0o777 & ~_umask())  # mkdtemp's 0700 would make results private
+        mark(staging, kind)
         yield staging
         if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
-            os.replace(out_dir, old / out_dir.name)
-            os.replace(staging, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(staging, out_dir)
+            check_output(out_dir, kind, overwrite=overwrite)  # still the twin's, just before it goes
+        publish_directory(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+def publish_directory(complete: Path, target: Path) -> None:
+    """Rename a complete directory to `target`, replacing a `target` that exists: the old one is
+    first moved aside (a rename), so `target` is at every moment either the old or the new."""
+    if not target.exists():
+        os.replace(complete, target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+    os.replace(target, old / target.name)
+    os.replace(complete, target)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def write_run(

@@ -96,7 +96,7 @@ def simulate_lockstep(
     )
     disturbances = Disturbances(scenes, period)
     recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
-    metrics = OnlineMetrics(runs, machine.drive_limits)
+    metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range)
 
     wind_mean = np.array([s.plant.wind_speed for s in scenes])
     errors_and_forces = np.zeros((runs, 12))
@@ -113,7 +113,7 @@ def simulate_lockstep(
         np.subtract(qdd_desired[j], qdd, out=columns["ACCELERATION"])
         np.copyto(columns["FORCE"], plant.drive_force)
         q_measured, qd_measured, command, disturbance, gust = inputs
-        metrics.add(j, errors_and_forces, command)
+        metrics.add(j, errors_and_forces, command, q)
         row = recorder.row(j)
         if row < 0:
             return

@@ -21,6 +21,8 @@ from mujoco.batch import SimulationError as BatchError
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
 
+STEPS_PER_CALL = 1000  # physics steps of one Batch.step call: under a second even for 128 runs
+
 # What MuJoCo's warnings mean, for messages (mjtWarning order).
 _WARNINGS = {
     mujoco.mjtWarning.mjWARN_INERTIA: "a body's inertia is too small",
@@ -56,7 +58,10 @@ class Plant:
         # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
         self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
         self._gear = machine.model.actuator_gear[ids, 0].copy()
-        self._substeps = round(sim.control_period / sim.timestep)
+        substeps = round(sim.control_period / sim.timestep)
+        # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
+        whole, rest = divmod(substeps, STEPS_PER_CALL)
+        self._calls = [STEPS_PER_CALL] * whole + ([rest] if rest else [])
 
         if any(s.plant.frictionloss is not None for s in scenes):
             frictionloss = batch.expand("dof_frictionloss")
@@ -85,11 +90,12 @@ class Plant:
         self._applied[:] = disturbance
         if self._wind is not None:
             self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
-        try:
-            self.batch.step(self.alive, nstep=self._substeps)
-        except BatchError as exc:
-            for run in exc.ids:
-                self._fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
+        for steps in self._calls:
+            try:
+                self.batch.step(self.alive, nstep=steps)
+            except BatchError as exc:
+                for run in exc.ids:
+                    self._fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
         if self._warning_counts.any():  # cheap each period, so a failure's time is exact
             self.check_health()
 

@@ -1,0 +1,121 @@
+"""What a run or a batch will cost, estimated from its scenes before anything starts, and the
+bounds beyond which the twin refuses to start without `--force`.
+
+The costs per physics step, per control period and per run directory were measured on the
+2-core reference machine (docs/performance.md); the estimate is meant to tell minutes from days
+and megabytes from terabytes, not to be exact.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import BwrError
+
+# Measured costs (docs/performance.md), rounded up.
+STEP_S = 3.8e-6  # s of CPU per physics step of one run (MuJoCo's floor: 1.33 s for 350,000 steps)
+PERIOD_PER_RUN_S = 8e-6  # s per control period and run: encoders, controller, records
+PERIOD_PER_LOCKSTEP_S = 75e-6  # s per control period of a lockstep, whatever its size: numpy call overheads
+FILES_S = 0.2  # s to write one run directory
+PLOTS_S = 3.0  # s to draw one run's figures
+ROW_BYTES = 600  # of timeseries.csv per recorded row: 47 columns at 10 significant digits
+RUN_FILES_BYTES = 8_000  # metrics.json and scene.json
+PLOTS_BYTES = 700_000  # one run's PNG figures
+RECORD_ROW_BYTES = 46 * 8  # a run's record in memory per row: 46 float64 signals
+SAMPLE_BYTES = 13 * 8  # the path sampled at the control period: time, q, qd, qdd, CP
+
+# Bounds a command refuses to go beyond without --force.
+MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
+MAX_MEMORY_SHARE = 0.5  # of this machine's RAM, all workers' locksteps together
+MAX_DISK_SHARE = 0.9  # of the free space where the results go
+FORCE_HELP = (f"start even if the estimate exceeds {MAX_HOURS:g} h, {MAX_MEMORY_SHARE:.0%} of the memory "
+              f"or {MAX_DISK_SHARE:.0%} of the free disk")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The cost of simulating some runs, split into locksteps of at most `chunk` runs on `workers`."""
+
+    runs: int
+    physics_steps: float  # all runs together
+    seconds: float  # wall time on the workers
+    memory_bytes: float  # peak, all workers' locksteps together
+    disk_bytes: float  # the run directories
+
+    def describe(self) -> str:
+        return (f"{self.runs} run{'s' if self.runs != 1 else ''}, {self.physics_steps:.3g} physics steps, "
+                f"about {_duration(self.seconds)}, {_bytes(self.memory_bytes)} of memory and "
+                f"{_bytes(self.disk_bytes)} of results")
+
+
+def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots: bool = False) -> Estimate:
+    """The cost of simulating `scenes` in locksteps of `chunk` runs on `workers` processes."""
+    steps = periods = rows = cpu = 0.0
+    peak_lockstep = 0.0
+    for scene in scenes:
+        sim = scene.simulation
+        via = scene.trajectory.via_points
+        duration = via[-1].t - via[0].t
+        run_periods = duration / sim.control_period + 1
+        run_steps = duration / sim.timestep
+        run_rows = duration / sim.record_period + 1
+        steps += run_steps
+        periods += run_periods
+        rows += run_rows
+        cpu += run_steps * STEP_S + run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk)
+        cpu += FILES_S + (PLOTS_S if plots else 0.0)
+        peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES + chunk * run_rows * RECORD_ROW_BYTES)
+    runs = len(scenes)
+    parallel = max(1, min(workers, math.ceil(runs / chunk)))
+    disk = rows * ROW_BYTES + runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
+    return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
+
+
+def check_estimate(cost: Estimate, *, where: Path | str, out_dir: Path, force: bool) -> None:
+    """Refuse (BwrError naming `where`, the bound and the estimate) work beyond the bounds,
+    unless `force`."""
+    if force:
+        return
+    limits = []
+    if cost.seconds > MAX_HOURS * 3600:
+        limits.append(f"more than {MAX_HOURS:g} h")
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    if cost.memory_bytes > MAX_MEMORY_SHARE * memory:
+        limits.append(f"more than {MAX_MEMORY_SHARE:.0%} of the {_bytes(memory)} of memory")
+    free = shutil.disk_usage(_existing(out_dir)).free
+    if cost.disk_bytes > MAX_DISK_SHARE * free:
+        limits.append(f"more than the {_bytes(free)} free on disk")
+    if limits:
+        raise BwrError(f"{where}: would take {' and '.join(limits)}: {cost.describe()}; "
+                       "check the timestep, the via point times and the sweep, or pass --force")
+
+
+def _existing(path: Path) -> Path:
+    path = path.resolve()
+    while not path.exists():
+        path = path.parent
+    return path
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 2 * 3600:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.3g} days"
+
+
+def _bytes(count: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if count < 1000 or unit == "TB":
+            return f"{count:.3g} {unit}" if unit != "B" else f"{count:.0f} B"
+        count /= 1000
+    raise AssertionError("unreachable")
