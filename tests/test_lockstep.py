@@ -14,6 +14,7 @@ from bwr_twin.config.scene import EncoderSection, load_scene
 from bwr_twin.control.belief import Belief
 from bwr_twin.control.controller import FuzzyModelController
 from bwr_twin.control.fuzzy import FuzzySurface
+from bwr_twin.control.interface import ControllerContext
 from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.results.rundir import METRICS_FILE, write_run
 from bwr_twin.sim.encoders import Encoders
@@ -105,15 +106,16 @@ def test_with_zero_fuzzy_output_the_force_is_the_bias_and_with_feedforward_inver
     qfrc_bias; with feed-forward, u = qdd_d and tau is mj_inverse's force without the passive
     forces, which the belief leaves out by design."""
     scene = load_scene(short_scene, {"controller.acceleration_feedforward": True})
-    surface = FuzzySurface.load(RuleBase.from_toml(scene.controller.rule_base))
+    surface = FuzzySurface.load(RuleBase.from_toml(scene.controller.settings.rule_base))
     rng = np.random.default_rng(2)
     q = rng.uniform([-20, -1.5, -0.25], [20, 1.5, 0.25], (4, 3))
     qd = rng.uniform(-0.3, 0.3, (4, 3))
     qdd = rng.uniform(-0.01, 0.01, (4, 3))
-    plain = FuzzyModelController(Belief(paper_machine, 4), [load_scene(scene.path).controller] * 4, surface)
-    feedforward = FuzzyModelController(Belief(paper_machine, 4), [scene.controller] * 4, surface)
-    bias = plain.compute(q, qd, q, qd, qdd)
-    tau = feedforward.compute(q, qd, q, qd, qdd)
+    context = ControllerContext(runs=4, control_period=0.01, machine=paper_machine)
+    plain = FuzzyModelController(context, [load_scene(scene.path).controller.settings] * 4, surface)
+    feedforward = FuzzyModelController(context, [scene.controller.settings] * 4, surface)
+    bias = plain.compute(q, qd, q, qd, qdd, None)
+    tau = feedforward.compute(q, qd, q, qd, qdd, None)
     assert np.all(np.abs(plain.fuzzy_output) < 1e-12)  # the centroid of O, to rounding
     data = mujoco.MjData(paper_machine.model)
     for run in range(4):

@@ -24,20 +24,20 @@ def edited(tmp_path, old, new, source=INDIVIDUAL):
 @pytest.mark.parametrize("name, gains", [("paper_shared_gain", (0.001,) * 3), ("paper_individual_gains", (0.01, 0.04, 0.06))])
 def test_paper_scenes_hold_the_paper_settings(name, gains):
     scene = load_scene(SCENES / f"{name}.toml")
-    assert scene.controller.output_gain == gains
-    assert scene.controller.input_scale_e == scene.controller.input_scale_ec == 50
+    assert scene.controller.settings.output_gain == gains
+    assert scene.controller.settings.input_scale_e == scene.controller.settings.input_scale_ec == 50
     assert scene.encoders.resolution == (0.00153, 0.00153, 0.00076)
     assert scene.disturbance.amplitude == (100, 100, 100)
     assert scene.machine.mjcf == PAPER_MJCF
     assert scene.controller_mjcf == PAPER_MJCF
     assert scene.trajectory.frame == "paper"
     assert [(v.t, v.p) for v in scene.trajectory.via_points] == PAPER_VIA_POINTS
-    assert not scene.controller.acceleration_feedforward
+    assert not scene.controller.settings.acceleration_feedforward
 
 
 def test_overrides_are_validated_like_the_file():
     scene = load_scene(INDIVIDUAL, {"simulation.seed": 7, "controller.output_gain": [0.02, 0.04, 0.06]})
-    assert scene.simulation.seed == 7 and scene.controller.output_gain == (0.02, 0.04, 0.06)
+    assert scene.simulation.seed == 7 and scene.controller.settings.output_gain == (0.02, 0.04, 0.06)
     with pytest.raises(SceneError, match=r"'controller.output_gain' must hold 3 values"):
         load_scene(INDIVIDUAL, {"controller.output_gain": [0.02]})
 
@@ -104,9 +104,9 @@ def test_scene_round_trips_to_plain_data():
 def test_a_scene_extends_another_and_overrides_only_what_it_names():
     shared = load_scene(SCENES / "paper_shared_gain.toml")
     individual = load_scene(INDIVIDUAL)
-    assert shared.controller.output_gain == (0.001,) * 3
+    assert shared.controller.settings.output_gain == (0.001,) * 3
     assert shared.trajectory == individual.trajectory and shared.encoders == individual.encoders
-    assert shared.controller.rule_base == individual.controller.rule_base
+    assert shared.controller.settings.rule_base == individual.controller.settings.rule_base
 
 
 def test_extends_cycle_and_missing_base_are_named(tmp_path):

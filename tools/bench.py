@@ -88,7 +88,7 @@ def main() -> None:
     single = time.perf_counter() - started
     print(f"single run (a lockstep of one): {single:.2f} s, {duration / single:.0f}x real time")
 
-    rule_base = RuleBase.from_toml(base.controller.rule_base)
+    rule_base = RuleBase.from_toml(base.controller.settings.rule_base)
     surface = FuzzySurface.load(rule_base)
     rng = np.random.default_rng(0)
     e, ec, out = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3), np.zeros(3)

@@ -71,11 +71,40 @@ class DisturbanceSection:
 
 @dataclass(frozen=True)
 class ControllerSection:
-    rule_base: Path
-    input_scale_e: float
-    input_scale_ec: float
-    output_gain: Vec3
-    acceleration_feedforward: bool = False
+    """`[controller]`: `type` names the controller (bwr_twin.control.registry), the other keys
+    are its settings, an instance of that controller's `Settings` dataclass."""
+
+    type: str
+    settings: Any
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        """The files the controller reads: its Python file, if it is an engineer's, and its settings' files."""
+        source = (Path(self.type.rpartition(":")[0]),) if ":" in self.type else ()
+        return source + tuple(v for v in self.to_dict().values() if isinstance(v, Path))
+
+    def to_dict(self) -> dict[str, Any]:
+        """{"type": ..., setting: value, ...}: the [controller] table as the scene file has it."""
+        settings = {f.name: getattr(self.settings, f.name) for f in dataclasses.fields(self.settings)}
+        return {"type": self.type, **settings}
+
+    def label(self) -> str:
+        """'fuzzy_model, output_gain 0.01/0.04/0.06': the type and its per-axis settings, for titles."""
+        name = Path(self.type).name if ":" in self.type else self.type
+        per_axis = [f"{k} {'/'.join(f'{x:g}' for x in v)}" for k, v in self.to_dict().items()
+                    if isinstance(v, tuple) and all(is_number(x) for x in v)]
+        return ", ".join([name, *per_axis])
+
+    def __reduce__(self) -> tuple:
+        # Rebuilt from plain data: a worker process imports an engineer's file itself.
+        return (_controller_section, (self.type, self.to_dict()))
+
+
+def _controller_section(type_name: str, values: dict[str, Any]) -> ControllerSection:
+    from bwr_twin.control.registry import controller_class
+
+    values = {k: v for k, v in values.items() if k != "type"}
+    return ControllerSection(type_name, controller_class(type_name).Settings(**values))
 
 
 @dataclass(frozen=True)
@@ -116,11 +145,13 @@ class Scene:
     @property
     def input_files(self) -> tuple[Path, ...]:
         """The files this scene reads: nothing the twin writes may replace them."""
-        return (self.path, self.machine.mjcf, self.controller_mjcf, self.controller.rule_base)
+        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
-        return _plain(dataclasses.asdict(self))
+        tables = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        tables["controller"] = self.controller.to_dict()
+        return _plain({k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in tables.items()})
 
 
 # TOML table name of each Scene field ("path" is a reserved word of the scene itself).
@@ -139,7 +170,11 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     path = Path(path)
     raw = copy.deepcopy(_read_raw_once(path, _stamp(path)))
     for key, value in (overrides or {}).items():
-        _set_dotted(raw, key, _resolve_paths(value, Path.cwd()) if _is_path_key(key) else value, path)
+        if _is_path_key(key):
+            value = _resolve_paths(value, Path.cwd())
+        elif key == "controller.type":
+            value = _resolve_controller_type(value, Path.cwd())
+        _set_dotted(raw, key, value, path)
     scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
     _check_rules(scene)
     return scene
@@ -181,7 +216,20 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
     chain = extended_by + (path.resolve(),)
     if base_path in chain:
         raise SceneError(f"{path}: 'extends' makes a cycle through {base_path.name}")
-    return _merged(_read_raw(base_path, chain), raw)
+    base_raw = _read_raw(base_path, chain)
+    merged = _merged(base_raw, raw)
+    named = raw.get("controller", {}).get("type") if isinstance(raw.get("controller"), dict) else None
+    if named is not None and named != _controller_type(base_raw):
+        merged["controller"] = raw["controller"]  # another controller: none of the base's settings
+    return merged
+
+
+def _controller_type(raw: dict) -> str:
+    """The controller type a raw scene names, or the default one."""
+    from bwr_twin.control.registry import DEFAULT
+
+    table = raw.get("controller")
+    return table.get("type", DEFAULT) if isinstance(table, dict) else DEFAULT
 
 
 def _merged(base: dict, over: dict) -> dict:
@@ -201,11 +249,23 @@ def _rename_tables(raw: dict) -> dict:
 
 
 # Keys whose values are file paths, relative to the file that names them.
+# Keys whose values are files, relative to the scene file that gives them: these, any key that
+# ends in "_file", and the file part of a controller type "my_controller.py:MyController".
 PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
 
 
 def _is_path_key(dotted: str) -> bool:
-    return dotted.rsplit(".", 1)[-1] in PATH_KEYS
+    key = dotted.rsplit(".", 1)[-1]
+    return key in PATH_KEYS or key.endswith("_file")
+
+
+def _resolve_controller_type(value: Any, base: Path) -> Any:
+    from bwr_twin.control.registry import is_file_reference
+
+    if not (isinstance(value, str) and is_file_reference(value)):
+        return value
+    file, _, name = value.rpartition(":")
+    return f"{(base / file).resolve()}:{name}"
 
 
 def _resolve_paths(raw: Any, base: Path) -> Any:
@@ -214,16 +274,19 @@ def _resolve_paths(raw: Any, base: Path) -> Any:
         return str((base / raw).resolve())
     if not isinstance(raw, dict):
         return raw
-    return {
+    resolved = {
         k: (
             str((base / v).resolve())
-            if k in PATH_KEYS and isinstance(v, str)
+            if _is_path_key(k) and isinstance(v, str)
             else _resolve_paths(v, base)
             if isinstance(v, dict)
             else v
         )
         for k, v in raw.items()
     }
+    if isinstance(resolved.get("controller"), dict) and "type" in resolved["controller"]:
+        resolved["controller"]["type"] = _resolve_controller_type(resolved["controller"]["type"], base)
+    return resolved
 
 
 def _set_dotted(raw: dict, dotted: str, value: Any, path: Path) -> None:
@@ -286,6 +349,8 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
             return None
         (inner,) = [a for a in args if a is not type(None)]
         return _convert(inner, value, path, key)
+    if hint is ControllerSection:
+        return _build_controller(value, path, key)
     if dataclasses.is_dataclass(hint):
         return _build(hint, value, path, key)
     if origin is Literal:
@@ -323,6 +388,28 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
     raise TypeError(f"unsupported scene field type {hint}")  # a bug here, not in the file
 
 
+def _build_controller(table: Any, path: Path, where: str) -> ControllerSection:
+    """[controller]: its `type` picks the Settings dataclass that the other keys must fill."""
+    from bwr_twin.control.interface import SettingsError
+    from bwr_twin.control.registry import DEFAULT, controller_class
+
+    if not isinstance(table, dict):
+        raise SceneError(f"{path}: [{where}] must be a table")
+    type_name = table.get("type", DEFAULT)
+    if not isinstance(type_name, str):
+        raise SceneError(f"{path}: '{where}.type' must be a string, got {type_name!r}")
+    try:
+        cls = controller_class(type_name)
+    except SceneError as exc:
+        raise SceneError(f"{path}: {exc}") from None
+    settings = _build(cls.Settings, {k: v for k, v in table.items() if k != "type"}, path, where)
+    try:
+        getattr(settings, "validate", lambda: None)()
+    except SettingsError as exc:
+        raise SceneError(f"{path}: '{where}.{exc.key}' {exc.message}") from None
+    return ControllerSection(type_name, settings)
+
+
 def _check_rules(scene: Scene) -> None:
     """Rules that types alone do not express."""
     p = scene.path
@@ -338,16 +425,10 @@ def _check_rules(scene: Scene) -> None:
     positive("simulation.control_period", sim.control_period)
     positive("simulation.record_period", sim.record_period)
     positive("disturbance.hold_time", scene.disturbance.hold_time)
-    positive("controller.input_scale_e", scene.controller.input_scale_e)
-    positive("controller.input_scale_ec", scene.controller.input_scale_ec)
     positive("encoders.velocity_filter", scene.encoders.velocity_filter)
     positive("plant.gust_hold_time", scene.plant.gust_hold_time)
-    for key, vec in (
-        ("encoders.resolution", scene.encoders.resolution),
-        ("controller.output_gain", scene.controller.output_gain),
-    ):
-        for axis, value in zip(("travel", "slew", "luff"), vec):
-            positive(f"{key} ({axis})", value)
+    for axis, value in zip(("travel", "slew", "luff"), scene.encoders.resolution):
+        positive(f"encoders.resolution ({axis})", value)
     for key, vec in (("disturbance.amplitude", scene.disturbance.amplitude), ("plant.frictionloss", scene.plant.frictionloss)):
         if vec is not None and min(vec) < 0:
             raise SceneError(f"{p}: '{key}' must be >= 0 on every axis, got {list(vec)}")
@@ -373,9 +454,9 @@ def _check_rules(scene: Scene) -> None:
                 f"{p}: via point {i + 1} (t = {via[i].t} s) must come after via point {i} "
                 f"(t = {via[i - 1].t} s): times must increase"
             )
-    for key in ("machine.mjcf", "machine.controller_mjcf", "controller.rule_base"):
-        section, name = key.split(".")
-        file = getattr(getattr(scene, section), name)
+    files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
+    files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
+    for key, file in files.items():
         if file is not None and not file.is_file():
             raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
 

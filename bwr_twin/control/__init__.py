@@ -1,1 +1,8 @@
-"""Control: the fuzzy rule base and its surface, the controller's belief (M, bias), the control law."""
+"""Control: the controller slot (interface, registry), the paper's fuzzy + model-based controller
+(rule base, surface, belief), and the PID and computed-torque baselines.
+
+An engineer's own controller derives from `Controller` (docs/controllers.md)."""
+
+from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
+
+__all__ = ["Controller", "ControllerContext", "SettingsError"]

@@ -11,27 +11,54 @@ run; the rule base (the fuzzy surface) is shared by the lockstep.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.config.scene import ControllerSection
-from bwr_twin.control.belief import Belief
 from bwr_twin.control.fuzzy import FuzzySurface
+from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
+from bwr_twin.control.rulebase import RuleBase
+
+Vec3 = tuple[float, float, float]
 
 
-class FuzzyModelController:
+@dataclass(frozen=True)
+class FuzzyModelSettings:
+    """[controller] keys of `type = "fuzzy_model"` (paper Sec. 3 and 5)."""
+
+    rule_base: Path  # the fuzzy rule base: a TOML file (bwr_twin.control.rulebase) or a MATLAB .fis
+    input_scale_e: float  # K_e, 1/m and 1/rad
+    input_scale_ec: float  # K_ec, s/m and s/rad
+    output_gain: Vec3  # K_out per axis: m/s^2 and rad/s^2 per unit of the output universe
+    acceleration_feedforward: bool = False  # add the reference acceleration to u (not in the paper)
+
+    def validate(self) -> None:
+        for key in ("input_scale_e", "input_scale_ec"):
+            if not getattr(self, key) > 0:
+                raise SettingsError(key, f"must be > 0, got {getattr(self, key)}")
+        for axis, gain in zip(("travel", "slew", "luff"), self.output_gain):
+            if not gain > 0:
+                raise SettingsError(f"output_gain ({axis})", f"must be > 0, got {gain}")
+
+
+class FuzzyModelController(Controller):
     """Drive forces from measured and desired joint states, all (runs, 3).
 
     After `compute`, `fuzzy_output` (FLC output, in the output universe) and
     `acceleration_command` (u, m/s^2 and rad/s^2) hold this period's values.
     """
 
-    def __init__(self, belief: Belief, settings: Sequence[ControllerSection], surface: FuzzySurface):
-        self.belief = belief
-        self._surface = surface
-        self._scale_e = np.array([s.input_scale_e for s in settings])[:, None]
-        self._scale_ec = np.array([s.input_scale_ec for s in settings])[:, None]
-        self._output_gain = np.array([s.output_gain for s in settings])
+    Settings = FuzzyModelSettings
+
+    def __init__(self, context: ControllerContext, settings: Sequence[FuzzyModelSettings],
+                 surface: FuzzySurface | None = None):
+        super().__init__(context, settings)
+        self.belief = context.belief
+        self._surface = surface or FuzzySurface.load(RuleBase.from_file(settings[0].rule_base))
+        self._scale_e = self.per_run("input_scale_e")
+        self._scale_ec = self.per_run("input_scale_ec")
+        self._output_gain = self.per_run("output_gain")
         self._feedforward = np.array([s.acceleration_feedforward for s in settings])[:, None]
         self._any_feedforward = bool(self._feedforward.any())
         self._e = np.zeros(self._output_gain.shape)

@@ -91,6 +91,21 @@ class RuleBase:
             raise SceneError(f"{path}: not valid TOML: {exc}") from None
         return _parse(path, data)
 
+    @classmethod
+    def from_file(cls, path: str | Path) -> RuleBase:
+        """A TOML rule base, or a MATLAB .fis file that one can express (bwr_twin.fis.convert:
+        two inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
+        path = Path(path)
+        if path.suffix.lower() == ".fis":
+            from bwr_twin.fis.convert import fis_to_rulebase  # bwr_twin.fis builds on this module
+            from bwr_twin.fis.reader import read_fis
+
+            try:
+                return fis_to_rulebase(read_fis(path))
+            except SceneError as exc:
+                raise SceneError(f"{exc} (as a rule base of the fuzzy_model controller: docs/fis.md)") from None
+        return cls.from_toml(path)
+
     def digest(self) -> str:
         """sha256 of the content (not of the file or its comments): the surface cache key."""
         canonical = {

@@ -206,7 +206,8 @@ def decimate(time: np.ndarray, step: float) -> np.ndarray:
 
 def cache_key(scene: Scene) -> str:
     """A digest of everything that decides a run: the resolved scene, both compiled models
-    (includes and meshes too), the rule base and the package's simulation code."""
+    (includes and meshes too), the controller's files (a rule base, an engineer's Python file)
+    and the package's simulation code."""
     digest = hashlib.sha256()
     settings = scene.to_dict()
     settings.pop("path")  # where the scene file lives does not change the run
@@ -216,7 +217,8 @@ def cache_key(scene: Scene) -> str:
         compiled = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
         mujoco.mj_saveModel(model, None, compiled)
         digest.update(compiled.tobytes())
-    digest.update(Path(scene.controller.rule_base).read_bytes())
+    for file in scene.controller.files:
+        digest.update(file.read_bytes())
     for source in sorted(path for folder in _SIMULATION_CODE for path in folder.rglob("*.py")):
         digest.update(source.read_bytes())
     return digest.hexdigest()[:16]

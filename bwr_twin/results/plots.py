@@ -37,8 +37,7 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     """Write the figures of one run into out_dir; returns their paths."""
     out_dir = Path(out_dir)
     name = result.scene.path.stem
-    gains = ", ".join(f"{g:g}" for g in result.scene.controller.output_gain)
-    subtitle = f"{name}, output gains {gains}, seed {result.scene.simulation.seed}"
+    subtitle = f"{name}, {result.scene.controller.label()}, seed {result.scene.simulation.seed}"
     paths = []
 
     def save(filename, title, series, unit_suffix=""):
@@ -59,6 +58,8 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     save("errors_acceleration.png", "Acceleration error, desired - actual (paper Fig. 10, 13 right)",
          [("error", result.qdd_desired - result.qdd, "C3-")], "/s²")
 
+    if np.isnan(result.fuzzy_output).all():  # a controller without fuzzy logic
+        return paths + [_drive_force_figure(result, subtitle, out_dir), _cp_figure(result, subtitle, out_dir)]
     # Fig. 9: the FLC output itself (dimensionless) and the acceleration command it makes.
     fig = Figure(figsize=(10, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
@@ -73,7 +74,11 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     paths.append(out_dir / "fuzzy_outputs.png")
     fig.savefig(paths[-1], dpi=110)
 
-    # Drive forces against their limits.
+    return paths + [_drive_force_figure(result, subtitle, out_dir), _cp_figure(result, subtitle, out_dir)]
+
+
+def _drive_force_figure(result: RunResult, subtitle: str, out_dir: Path) -> Path:
+    """Drive forces and torques, commanded and applied, against their limits."""
     limits = result.machine.drive_limits
     force_units = ("kN", "kN m", "kN m")
     fig = Figure(figsize=(10, 8), layout="constrained")
@@ -90,10 +95,12 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     axes[0].legend(dict(zip(labels, handles)).values(), dict(zip(labels, handles)).keys(), loc="upper right")
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"Drive forces and torques against their limits\n{subtitle}")
-    paths.append(out_dir / "drive_forces.png")
-    fig.savefig(paths[-1], dpi=110)
+    fig.savefig(out_dir / "drive_forces.png", dpi=110)
+    return out_dir / "drive_forces.png"
 
-    # The CP path in the paper's frame 0: plan view and elevation.
+
+def _cp_figure(result: RunResult, subtitle: str, out_dir: Path) -> Path:
+    """The CP path in the paper's frame 0: plan view and elevation."""
     desired, actual = world_to_paper(result.cp_desired), world_to_paper(result.cp)
     via = world_to_paper(result.trajectory.points)
     fig = Figure(figsize=(12, 5), layout="constrained")
@@ -114,6 +121,5 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     side.invert_yaxis()
     top.legend(loc="best")
     fig.suptitle(f"Bucket wheel centre path in the paper's frame 0\n{subtitle}")
-    paths.append(out_dir / "cp_path.png")
-    fig.savefig(paths[-1], dpi=110)
-    return paths
+    fig.savefig(out_dir / "cp_path.png", dpi=110)
+    return out_dir / "cp_path.png"

@@ -1,7 +1,7 @@
 """The closed loop for many runs at once: trajectory -> encoders -> controller -> plant, one
 control period at a time, every signal a (runs, 3) array.
 
-A lockstep is a group of runs of one machine, path, rule base and timing; what may differ
+A lockstep is a group of runs of one machine, path, controller (and rule base) and timing; what may differ
 between its runs (seeds, gains, input scales, encoders, disturbances, friction loss, wind) is
 per-run data. `lockstep_key` says which runs may share a lockstep. A single run is a lockstep of
 one: `simulate(scene)` is `simulate_lockstep([scene])[0]`, and a run's result does not depend
@@ -16,10 +16,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from bwr_twin.config.scene import Scene
-from bwr_twin.control.belief import Belief
-from bwr_twin.control.controller import FuzzyModelController
-from bwr_twin.control.fuzzy import FuzzySurface
-from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.control.interface import ControllerContext, shared_settings
+from bwr_twin.control.registry import controller_class
 from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.trajectory import Trajectory
@@ -35,14 +33,16 @@ Progress = Callable[[float, float], None]
 
 
 def lockstep_key(scene: Scene) -> tuple:
-    """What the runs of one lockstep share: the compiled models, the path, the rule base, the timing."""
+    """What the runs of one lockstep share: the compiled models, the path, the controller and
+    its settings other than numbers (a rule base, say), the timing."""
     sim = scene.simulation
     return (
         str(scene.machine.mjcf),
         scene.plant.payload,
         str(scene.controller_mjcf),
         scene.trajectory,
-        str(scene.controller.rule_base),
+        scene.controller.type,
+        shared_settings(scene.controller.settings),
         sim.timestep,
         sim.control_period,
         sim.record_period,
@@ -79,8 +79,6 @@ def simulate_lockstep(
         trajectory = Trajectory.plan(scene.trajectory, machine)
     except (UnreachableError, EnvelopeError) as exc:
         raise type(exc)(f"{scene.path}: {exc}") from None
-    surface = FuzzySurface.load(RuleBase.from_toml(scene.controller.rule_base))
-
     runs = len(scenes)
     nthread = min(nthread or os.cpu_count() or 1, runs)
     period = scene.simulation.control_period
@@ -91,9 +89,9 @@ def simulate_lockstep(
 
     plant = Plant(machine, scenes, q0=trajectory.knots[0], nthread=nthread)
     encoders = Encoders([s.encoders for s in scenes], period, trajectory.knots[0])
-    controller = FuzzyModelController(
-        Belief(belief_machine, runs, nthread=nthread), [s.controller for s in scenes], surface
-    )
+    context = ControllerContext(runs, period, belief_machine, nthread)
+    controller = controller_class(scene.controller.type)(context, [s.controller.settings for s in scenes])
+    unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
     disturbances = Disturbances(scenes, period)
     recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
     metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range)
@@ -121,8 +119,8 @@ def simulate_lockstep(
         for name, value in (("q_desired", q_desired[j]), ("q", q), ("q_measured", q_measured),
                             ("qd_desired", qd_desired[j]), ("qd", qd), ("qd_measured", qd_measured),
                             ("qdd_desired", qdd_desired[j]), ("qdd", qdd),
-                            ("fuzzy_output", controller.fuzzy_output),
-                            ("acceleration_command", controller.acceleration_command),
+                            ("fuzzy_output", _or(controller.fuzzy_output, unrecorded)),
+                            ("acceleration_command", _or(controller.acceleration_command, unrecorded)),
                             ("drive_force_command", command), ("drive_force", plant.drive_force),
                             ("disturbance", disturbance)):
             recorder.signals[name][row] = value
@@ -171,3 +169,7 @@ def simulate_lockstep(
         results.append(recorder.run_result(run, scene=run_scene, machine=machine, trajectory=trajectory,
                                            time=time, metrics=run_metrics))
     return results
+
+
+def _or(signal: np.ndarray | None, missing: np.ndarray) -> np.ndarray:
+    return missing if signal is None else signal
