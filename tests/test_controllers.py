@@ -1,6 +1,7 @@
 """The controller slot: the built-in baselines, an engineer's own controller copied from
 docs/controllers.md, and the one-line errors of bad controller settings."""
 
+import csv
 import json
 import re
 import subprocess
@@ -213,3 +214,42 @@ def test_a_fis_the_paper_controller_cannot_use_gets_one_line(tmp_path):
     (line,) = proc.stderr.strip().splitlines()
     assert line.startswith("error: ") and "tipper.fis" in line, line
     assert not (tmp_path / "out").exists()
+
+
+# --- side by side -------------------------------------------------------------------------------------
+
+
+def test_compare_runs_every_controller_on_the_same_seeds_and_writes_table_and_plots(tmp_path):
+    write_short_scene(tmp_path)
+    proc = subprocess.run([sys.executable, "-m", "bwr_twin.compare", "short.toml", "--controllers",
+                           "paper_individual_gains", "pid_paper", "computed_torque_paper", "--seeds", "2",
+                           "--out", "cmp"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "cmp"
+    rows = list(csv.DictReader((out / "comparison.csv").open()))
+    assert [(r["controller"], r["axis"]) for r in rows[:3]] == [("paper_individual_gains", a) for a in
+                                                               ("travel", "slew", "luff")]
+    assert len(rows) == 9 and all(r["seeds"] == "2" for r in rows)
+    travel = {r["controller"]: float(r["position_error_max"]) for r in rows if r["axis"] == "travel"}
+    assert travel["computed_torque_paper"] < travel["pid_paper"] < travel["paper_individual_gains"]
+    # The table's worst max is the largest over the seeds' metrics.json, which the run directories hold.
+    runs = [json.loads((out / f"pid_paper-seed={s}" / "metrics.json").read_text()) for s in (1, 2)]
+    assert travel["pid_paper"] == max(abs(m["travel"]["position_error_max"]) for m in runs)
+    scenes = [json.loads((out / f"{c}-seed=2" / "scene.json").read_text()) for c in travel]
+    assert {s["disturbance"]["amplitude"][0] for s in scenes} == {100.0} and {s["simulation"]["seed"] for s in scenes} == {2}
+    assert "| computed_torque_paper |" in (out / "comparison.md").read_text() and "**luff**" in proc.stdout
+    assert (out / "errors.png").stat().st_size > 10_000 and (out / "drive_forces.png").stat().st_size > 10_000
+
+
+def test_compare_refuses_bad_input_in_one_line(tmp_path):
+    write_short_scene(tmp_path)
+    for args, message in (
+        (["--controllers", "pid_paper", "nowhere"], r"nowhere: scene file not found"),
+        (["--controllers", "pid_paper", "pid_paper"], r"--controllers: two scenes share the name 'pid_paper'"),
+    ):
+        proc = subprocess.run([sys.executable, "-m", "bwr_twin.compare", "short.toml", *args, "--out", "cmp"],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert re.search(message, line), line
+        assert not (tmp_path / "cmp").exists()

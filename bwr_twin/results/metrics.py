@@ -18,6 +18,7 @@ UNITS_NOTE = {
     "slew": "rad, rad/s, rad/s^2, N m",
     "luff": "rad, rad/s, rad/s^2, N m",
     "cp_error_max": "m",
+    "drive_energy": "J",
     "times": "s",
 }
 
@@ -58,8 +59,12 @@ class OnlineMetrics:
         ("beyond_drive_rating_time", "was commanded beyond its drive rating"),
     )
 
-    def __init__(self, runs: int, drive_limits: np.ndarray, envelope: np.ndarray, end_stops: np.ndarray):
+    def __init__(self, runs: int, drive_limits: np.ndarray, envelope: np.ndarray, end_stops: np.ndarray,
+                 period: float):
         self._limits = drive_limits  # (3, 2), N and N m
+        self._period = period  # s, between samples
+        self._energy = np.zeros((runs, 3))  # J: the drives' work, every watt counted (motoring or braking)
+        self._power = np.zeros((runs, 3))
         self._envelope = envelope  # (3, 2), m and rad
         # An end stop is reached within 0.1 % of the joint's range of it: MuJoCo's stops are soft.
         margin = 1e-3 * np.nan_to_num(end_stops[:, 1] - end_stops[:, 0], posinf=0.0)
@@ -75,11 +80,16 @@ class OnlineMetrics:
         self._position_final = np.zeros((runs, 3))
         self._samples = 0
 
-    def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray, q: np.ndarray) -> None:
+    def add(self, k: int, errors_and_forces: np.ndarray, command: np.ndarray, q: np.ndarray,
+            qd_mean: np.ndarray) -> None:
         """Sample k, once its control period has ended: a (runs, 12) array of position,
         velocity and acceleration errors and applied drive forces (columns POSITION, VELOCITY,
-        ACCELERATION, FORCE), the (runs, 3) commanded forces and the true joint positions."""
+        ACCELERATION, FORCE), the (runs, 3) commanded forces, the true joint positions and the
+        mean joint velocities over the period."""
         self._maxima.add(k, errors_and_forces)
+        np.multiply(errors_and_forces[:, self.FORCE], qd_mean, out=self._power)
+        np.abs(self._power, out=self._power)
+        self._energy += self._power * self._period
         np.multiply(errors_and_forces, errors_and_forces, out=self._square)
         self._squares += self._square
         breach = self._breach
@@ -117,6 +127,7 @@ class OnlineMetrics:
                 "position_error_final": float(self._position_final[run, j]),
                 "drive_force_max": float(value[f]),
                 "drive_force_rms": float(rms[f]),
+                "drive_energy": float(self._energy[run, j]),
                 "drive_limit": [float(limit[0]), float(limit[1])] if np.isfinite(limit).any() else None,
                 "saturation_fraction": float(self._saturated[run, j] / n),
             }

@@ -94,13 +94,13 @@ def simulate_lockstep(
     unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
     disturbances = Disturbances(scenes, period)
     recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
-    metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range)
+    metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
 
     wind_mean = np.array([s.plant.wind_speed for s in scenes])
     errors_and_forces = np.zeros((runs, 12))
     columns = {name: errors_and_forces[:, getattr(OnlineMetrics, name)]
                for name in ("POSITION", "VELOCITY", "ACCELERATION", "FORCE")}
-    qdd = np.zeros((runs, 3))
+    qdd, qd_mean = np.zeros((runs, 3)), np.zeros((runs, 3))
 
     def finish(j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray, inputs: tuple) -> None:
         """Sample j's metrics and record, once its period has ended at velocity qd_next. Runs
@@ -111,7 +111,8 @@ def simulate_lockstep(
         np.subtract(qdd_desired[j], qdd, out=columns["ACCELERATION"])
         np.copyto(columns["FORCE"], plant.drive_force)
         q_measured, qd_measured, command, disturbance, gust = inputs
-        metrics.add(j, errors_and_forces, command, q)
+        np.multiply(np.add(qd, qd_next, out=qd_mean), 0.5, out=qd_mean)
+        metrics.add(j, errors_and_forces, command, q, qd_mean)
         row = recorder.row(j)
         if row < 0:
             return

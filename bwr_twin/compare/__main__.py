@@ -1,0 +1,98 @@
+"""Run several controllers on the same path and the same disturbance seeds, side by side.
+
+    python -m bwr_twin.compare paper_individual_gains --controllers paper_individual_gains pid_paper \
+        computed_torque_paper --seeds 4 --out out/compare
+    python -m bwr_twin.compare SCENE --controllers A B ... [--seeds N] --out DIR [--overwrite] [--force]
+
+SCENE gives the machine, the path, the timing and the disturbances; each of A, B, ... is a scene
+(a file or a shipped name) whose `[controller]` table is used, labelled by its file name. Every
+controller runs seeds 1..N as one lockstep.
+
+DIR holds comparison.csv and comparison.md (per controller and axis: the worst max and the mean
+RMS error, peak and RMS drive force, drive energy and time at saturation, over the seeds, in
+engineering units), errors.png and drive_forces.png (seed 1 of every controller overlaid) and
+one run directory per controller and seed, as `bwr_twin.run` writes it without figures, for
+`bwr_twin.replay`. DIR appears only when complete. Bad input exits with status 2 and one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bwr_twin.errors import BwrError
+from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bwr_twin.compare", description=__doc__.split("\n\n")[0])
+    parser.add_argument("scene", help="scene giving the path and disturbances (a file or a shipped name)")
+    parser.add_argument("--controllers", nargs="+", required=True, metavar="SCENE",
+                        help="scenes whose [controller] tables are compared (at least two)")
+    parser.add_argument("--seeds", type=int, default=1, help="disturbance seeds 1..N for every controller")
+    parser.add_argument("--out", required=True, type=Path, help="output directory")
+    parser.add_argument("--overwrite", action="store_true", help="replace DIR, a comparison the twin wrote")
+    parser.add_argument("--force", action="store_true", help=FORCE_HELP)
+    args = parser.parse_args(argv)
+    if args.seeds < 1:
+        parser.error("--seeds must be at least 1")
+    if len(args.controllers) < 2:
+        parser.error("--controllers needs at least two scenes to compare")
+
+    from tqdm import tqdm
+
+    from bwr_twin.compare.report import write_comparison
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.results.ownership import check_output
+    from bwr_twin.shipped import find_scene
+    from bwr_twin.sim.lockstep import simulate_lockstep
+
+    try:
+        base = find_scene(args.scene)
+        sources = [find_scene(name) for name in args.controllers]
+        labels = [source.stem for source in sources]
+        if len(set(labels)) != len(labels):
+            raise BwrError(f"--controllers: two scenes share the name {_first_twice(labels)!r}; rename one")
+        groups = []
+        for source in sources:
+            table = load_scene(source).controller.to_dict()
+            groups.append([load_scene(base, {"controller": _plain(table), "simulation.seed": seed})
+                           for seed in range(1, args.seeds + 1)])
+        scenes = [scene for group in groups for scene in group]
+        inputs = {file for scene in scenes for file in scene.input_files} | set(sources)
+        check_output(args.out, "comparison", overwrite=args.overwrite, inputs=inputs)
+        check_estimate(estimate(scenes, chunk=args.seeds), where=base, out_dir=args.out, force=args.force)
+        results = []
+        with tqdm(total=len(scenes), desc="comparing", unit="run", disable=not sys.stderr.isatty()) as bar:
+            for label, group in zip(labels, groups):
+                bar.set_postfix_str(label)
+                outcome = simulate_lockstep(group)
+                failed = [r for r in outcome if isinstance(r, BwrError)]
+                if failed:
+                    raise BwrError(f"controller {label}: {failed[0]}")
+                results.append(outcome)
+                bar.update(len(group))
+        table = write_comparison(args.out, labels, results, overwrite=args.overwrite)
+    except BwrError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: nothing written", file=sys.stderr)
+        return 130
+    print(table, end="")
+    print(f"{len(labels)} controllers x {args.seeds} seeds on {base.name}; results in {args.out}/")
+    return 0
+
+
+def _plain(table: dict) -> dict:
+    """A [controller] table as a scene file holds it: paths as text, per-axis values as lists."""
+    return {k: str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v for k, v in table.items()}
+
+
+def _first_twice(labels: list[str]) -> str:
+    return next(label for i, label in enumerate(labels) if label in labels[:i])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
