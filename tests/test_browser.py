@@ -118,6 +118,41 @@ def test_page_renders_the_machine_and_play_advances_time(browser, recording):
             page.close()
 
 
+def test_a_second_controller_rides_along_as_a_translucent_ghost(browser, recording, tmp_path):
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.sim.lockstep import simulate
+
+    pid = load_scene(SCENES / "pid_paper.toml").controller.to_dict()
+    pid = {k: list(v) if isinstance(v, tuple) else v for k, v in pid.items()}
+    scene = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS, "controller": pid})
+    write_run(simulate(scene), tmp_path / "pid", plots=False)
+    ghost = Recording.from_run_dir(tmp_path / "pid")
+    with ReplayServer(recording, port=0, ghost=(ghost, "pid")) as server:
+        page = browser.new_page()
+        try:
+            page.goto(server.url)
+            moving = {n for n, m in zip(server.view.poser.names, server.view.poser.moving) if m}
+            ghost_triangles = sum(len(g.faces) for g in server.view.geoms if g.body in moving)
+            machine_triangles = sum(len(g.faces) for g in server.view.geoms)
+            page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {machine_triangles + ghost_triangles}",
+                                   timeout=WAIT_MS, polling=100)
+            page.get_by_text("Translucent: pid").wait_for(timeout=WAIT_MS)
+            server.player.seek(10.0)
+            time.sleep(1.0)
+            screenshot_showing_machine(page, server.view.geoms, "replay_ghost.png")
+            # Each machine stands where its own run stood at 10 s.
+            for view, run in ((server.view.ghost, ghost), (server.view, recording)):
+                positions, _ = view.poser.poses(run.at(10.0).q_actual)
+                frames = view.bodies if isinstance(view.bodies, list) else [view.bodies.get(n) for n in view.poser.names]
+                for frame, expected in zip(frames, positions):
+                    if frame is not None:
+                        np.testing.assert_allclose(frame.position, expected, atol=1e-6)
+            assert not np.allclose(ghost.at(10.0).q_actual, recording.at(10.0).q_actual)
+        finally:
+            page.close()
+
+
 def test_two_tabs_share_one_timeline(browser, recording):
     with ReplayServer(recording, port=0) as server:
         server.player.set_speed(1)  # the 20 s run must not end while the tabs catch up

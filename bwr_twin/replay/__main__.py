@@ -4,6 +4,7 @@
     python -m bwr_twin.replay SCENE               # simulate a scene, then replay it
     python -m bwr_twin.replay RUN_DIR             # replay a run of bwr_twin.run, no simulation
     python -m bwr_twin.replay [...] --export FILE.html   # write an offline recording and exit
+    python -m bwr_twin.replay RUN_DIR --ghost RUN_DIR2   # a second run of the path, translucent
 
 Serves http://127.0.0.1:8080 until Ctrl-C (--host to listen elsewhere, --port 0 for any free
 port; a busy port is replaced by the next free one). A scene is simulated in a child process at
@@ -22,15 +23,17 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from bwr_twin.errors import BwrError
 from bwr_twin.replay.exposure import exposure_warning
+from bwr_twin.replay.recording import Plan, Recording
 from bwr_twin.results.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 if TYPE_CHECKING:
     from bwr_twin.config.scene import Scene
-    from bwr_twin.replay.recording import Recording
 
 
 
@@ -63,6 +66,10 @@ def main(argv: list[str] | None = None) -> int:
         "--no-cache", action="store_true", help="simulate even if a cached run exists; cache nothing"
     )
     parser.add_argument(
+        "--ghost", type=Path, metavar="RUN_DIR", help="another run of the same path (say, another "
+        "controller's, from bwr_twin.compare), shown as a translucent machine"
+    )
+    parser.add_argument(
         "--force", action="store_true", help=FORCE_HELP
     )
     args = parser.parse_args(argv)
@@ -74,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         from bwr_twin.replay.simulation import simulate_in_child
 
         recording, scene = _open(args.source, use_cache=not args.no_cache)
+        ghost = _ghost(args.ghost, recording.plan if recording else Plan.from_scene(scene)) if args.ghost else None
         if recording is None:
             check_estimate(estimate([scene]), where=scene.path, out_dir=Path("out"), force=args.force)
         if args.export is not None:
@@ -82,15 +90,14 @@ def main(argv: list[str] | None = None) -> int:
             from bwr_twin.replay.export import export_html
 
             recording = recording or simulate_in_child(scene, use_cache=not args.no_cache)
-            size = export_html(recording, args.export)
+            size = export_html(recording, args.export, ghost=ghost)
             duration = recording.plan.duration
             print(f"wrote {args.export} ({size / 1e6:.1f} MB): the {duration:g} s reclaim, offline")
             return 0
 
         from bwr_twin.replay.app import ReplayServer
-        from bwr_twin.replay.recording import Plan
 
-        server = ReplayServer(recording or Plan.from_scene(scene), host=args.host, port=args.port)
+        server = ReplayServer(recording or Plan.from_scene(scene), host=args.host, port=args.port, ghost=ghost)
         if args.port not in (0, server.port):
             print(f"port {args.port} is busy; using {server.port}")
         print(f"replay at {server.url}  (Ctrl-C to stop)", flush=True)
@@ -112,10 +119,22 @@ def main(argv: list[str] | None = None) -> int:
             server.stop()
 
 
+def _ghost(run_dir: Path, plan: Plan) -> tuple[Recording, str]:
+    """The ghost's recording and name, once it is known to follow the same path."""
+    if not run_dir.is_dir():
+        raise BwrError(f"{run_dir}: --ghost must name a run directory")
+    ghost = Recording.from_run_dir(run_dir)
+    same = (np.array_equal(ghost.plan.via_times, plan.via_times)
+            and np.allclose(ghost.plan.via_points, plan.via_points, atol=1e-9))
+    if not same:
+        raise BwrError(f"{run_dir}: --ghost follows another path ({len(ghost.plan.via_times)} via points over "
+                       f"{ghost.plan.duration:g} s) than the replay ({len(plan.via_times)} over {plan.duration:g} s)")
+    return ghost, run_dir.name
+
+
 def _open(source: Path, *, use_cache: bool) -> tuple[Recording | None, Scene | None]:
     """(recording, None) for a run directory or a cached scene run, else (None, scene)."""
     from bwr_twin.config.scene import load_scene
-    from bwr_twin.replay.recording import Recording
     from bwr_twin.replay.simulation import cached_run
 
     if source.is_dir():

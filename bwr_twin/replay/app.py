@@ -48,9 +48,11 @@ class ReplayServer:
         host: interface to listen on; the default serves this machine only.
         port: TCP port; 0 picks a free one. A busy port is replaced by the next free one
             (`port` tells which).
+        ghost: another run of the same path and its name, shown as a translucent machine.
     """
 
-    def __init__(self, source: Plan | Recording, *, host: str = LOCAL_ONLY, port: int = 8080):
+    def __init__(self, source: Plan | Recording, *, host: str = LOCAL_ONLY, port: int = 8080,
+                 ghost: tuple[Recording, str] | None = None):
         plan = source.plan if isinstance(source, Recording) else source
         _check_listenable(host)
         with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; the caller prints the URL
@@ -61,6 +63,9 @@ class ReplayServer:
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, plan, panel_share=PANEL_SHARE)
         self.player: Player | None = None
+        if ghost is not None:
+            self.view.add_ghost(*ghost)
+            self.server.gui.add_markdown(f"Translucent: **{ghost[1]}**")
         self._waiting: list = []  # GUI elements shown while the run is being simulated
         if isinstance(source, Recording):
             self.load(source)

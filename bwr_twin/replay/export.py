@@ -32,6 +32,7 @@ def export_html(
     *,
     speed: float = EXPORT_SPEED,
     frame_rate: float = EXPORT_FRAME_RATE,
+    ghost: tuple[Recording, str] | None = None,
 ) -> int:
     """Write the recording's replay to `path` (atomically); returns the file size in bytes."""
     path = Path(path)
@@ -41,7 +42,7 @@ def export_html(
     with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner
         server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        html = _record(server, recording, speed, frame_rate)
+        html = _record(server, recording, speed, frame_rate, ghost)
     finally:
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
@@ -50,9 +51,12 @@ def export_html(
     return path.stat().st_size
 
 
-def _record(server: viser.ViserServer, recording: Recording, speed: float, frame_rate: float) -> str:
+def _record(server: viser.ViserServer, recording: Recording, speed: float, frame_rate: float,
+            ghost: tuple[Recording, str] | None) -> str:
     view = SceneView(server, recording.plan)
     view.attach(recording)
+    if ghost is not None:
+        view.add_ghost(*ghost)
     duration = recording.plan.duration
     caption = server.scene.add_label(
         "/readout", "", position=view.caption_position, anchor="top-center", font_screen_scale=1.1

@@ -26,6 +26,8 @@ TRAIL_CHUNK = 20  # trail segments per scene node; only the unfinished chunk is 
 LINE_WIDTH = 2.5  # px, desired path; the trail is twice as wide
 MARKER_SCALE = 0.01  # marker radius as a share of the path's extent
 LABEL_MERGE = 4.0  # via points closer than this many marker radii share one label
+GHOST_COLOUR = (90, 110, 255)
+GHOST_OPACITY = 0.35  # the second run's machine: seen through, the first stays in front
 
 
 def rgb(rgba: tuple[float, ...]) -> tuple[int, int, int]:
@@ -60,6 +62,7 @@ class SceneView:
         self.poser = BodyPoser(plan.machine)
         self.geoms = visual_geoms(plan.machine)
         self.recording: Recording | None = None
+        self.ghost: Ghost | None = None
         scene = server.scene
         self.bodies = [scene.add_frame(f"/machine/{name}", show_axes=False) for name in self.poser.names]
         self.geom_nodes = [
@@ -172,9 +175,15 @@ class SceneView:
             thickness_units="screen",
         )
 
+    def add_ghost(self, recording: Recording, label: str) -> None:
+        """A second run of the same path, drawn as a translucent machine that `show` poses too."""
+        self.ghost = Ghost(self.server, recording, label)
+
     def show(self, t: float) -> None:
-        """Pose machine, target and trail for time t (s) of the attached recording."""
+        """Pose machine, target and trail for time t (s) of the attached recording (and the ghost's)."""
         assert self.recording is not None, "attach a recording first"
+        if self.ghost is not None:
+            self.ghost.show(t)
         instant = self.recording.at(t)
         self._place(instant.q_actual)
         self.target.position = instant.cp_desired
@@ -185,3 +194,31 @@ class SceneView:
         self.chunks_shown = complete
         tip = np.concatenate([self.trail_points[complete * TRAIL_CHUNK : last + 1], instant.cp_actual[None]])
         self.trail_tip.points = _segments(tip)
+
+
+class Ghost:
+    """Another run's machine, translucent and in one colour, posed from its own recording: two
+    controllers on one path, side by side in one scene."""
+
+    def __init__(self, server: viser.ViserServer, recording: Recording, label: str):
+        self.recording = recording
+        self.poser = BodyPoser(recording.plan.machine)
+        moving = {name for name, moves in zip(self.poser.names, self.poser.moving) if moves}
+        scene = server.scene
+        self.bodies = {name: scene.add_frame(f"/ghost/{name}", show_axes=False) for name in moving}
+        for geom in visual_geoms(recording.plan.machine):
+            if geom.body in moving:
+                scene.add_mesh_simple(f"/ghost/{geom.body}/{geom.name.replace('/', '_')}", geom.vertices,
+                                      geom.faces, color=GHOST_COLOUR, opacity=GHOST_OPACITY,
+                                      position=geom.position, wxyz=geom.wxyz)
+        # Below the wheel: the via point labels sit above their points.
+        self.label = scene.add_label("/ghost_label", f"ghost: {label}", position=recording.plan.cp_desired[0],
+                                     anchor="top-center")
+
+    def show(self, t: float) -> None:
+        instant = self.recording.at(t)
+        positions, orientations = self.poser.poses(instant.q_actual)
+        for name, position, wxyz in zip(self.poser.names, positions, orientations):
+            if name in self.bodies:
+                self.bodies[name].position, self.bodies[name].wxyz = position, wxyz
+        self.label.position = instant.cp_actual
