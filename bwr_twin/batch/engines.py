@@ -51,12 +51,14 @@ class Outcome:
 _progress_queue: Any = None  # in a local worker: where it reports how far its lockstep is
 
 
-def execute_lockstep(runs: Sequence[PlannedRun], *, plots: bool, scratch: str | None, task: int = 0) -> list[Outcome]:
+def execute_lockstep(runs: Sequence[PlannedRun], *, plots: bool, scratch: str | None, task: int = 0,
+                     files: bool = True) -> list[Outcome]:
     """Simulate the runs of one lockstep and write their run directories. Runs in a worker.
 
     With `scratch` (a folder on the batch's machine) each run directory is left there and its
-    path returned; without, its files come back as bytes. A local worker reports
-    (task, share of the path simulated) as it goes.
+    path returned; without, its files come back as bytes; with `files` false, only the metrics
+    come back (a tuner's candidates). A local worker reports (task, share of the path simulated)
+    as it goes.
     """
     queue_ = _progress_queue
     report = None if queue_ is None else (lambda done, total: queue_.put((task, done / total)))
@@ -66,6 +68,9 @@ def execute_lockstep(runs: Sequence[PlannedRun], *, plots: bool, scratch: str | 
         results = [exc] * len(runs)
     except Exception as exc:  # noqa: BLE001 - a bug, not bad input: record it with its traceback
         results = [RuntimeError(f"{type(exc).__name__}: {exc}\n\n{traceback.format_exc()}")] * len(runs)
+    if not files:
+        return [Outcome(run.run_id, "failed", str(result).splitlines()[0], None) if isinstance(result, Exception)
+                else Outcome(run.run_id, "ok", "", result.metrics) for run, result in zip(runs, results)]
     return [_outcome_of(run, result, plots=plots, scratch=scratch) for run, result in zip(runs, results)]
 
 
@@ -127,11 +132,12 @@ class LocalPool:
         shutil.rmtree(self._scratch, ignore_errors=True)
 
     def outcomes(self, locksteps: Sequence[Sequence[PlannedRun]], *, plots: bool,
-                 on_progress: Any = None) -> Iterator[tuple[int, list[Outcome]]]:
+                 on_progress: Any = None, files: bool = True) -> Iterator[tuple[int, list[Outcome]]]:
         """(index, outcomes) of each lockstep as it completes; `on_progress(index, share)` hears
-        how far the running ones are."""
+        how far the running ones are. Without `files`, only metrics (execute_lockstep)."""
         futures = {
-            self._pool.submit(execute_lockstep, runs, plots=plots, scratch=self._scratch, task=task): task
+            self._pool.submit(execute_lockstep, runs, plots=plots, scratch=self._scratch, task=task,
+                              files=files): task
             for task, runs in enumerate(locksteps)
         }
         pending = set(futures)
@@ -195,8 +201,8 @@ class DaskCluster:
         self._client.close()
 
     def outcomes(self, locksteps: Sequence[Sequence[PlannedRun]], *, plots: bool,
-                 on_progress: Any = None) -> Iterator[tuple[int, list[Outcome]]]:
-        """(index, outcomes) of each lockstep as it completes."""
+                 on_progress: Any = None, files: bool = True) -> Iterator[tuple[int, list[Outcome]]]:
+        """(index, outcomes) of each lockstep as it completes. Without `files`, only metrics."""
         from distributed import as_completed
 
         batch = uuid.uuid4().hex[:8]  # keys must not collide with an earlier batch's on the scheduler
@@ -204,7 +210,7 @@ class DaskCluster:
         for task, runs in enumerate(locksteps):
             key = f"bwr_twin-{runs[0].run_id}-{len(runs)}-{batch}"
             futures[self._client.submit(execute_lockstep, runs, plots=plots, scratch=None, task=task,
-                                        key=key)] = task
+                                        files=files, key=key)] = task
         self._futures = list(futures)
         for future in as_completed(futures):
             task = futures.pop(future)

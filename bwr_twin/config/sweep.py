@@ -109,7 +109,7 @@ def load_sweep(path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Sweep:
     varied = _varied(raw.get("vary", {}), path, "vary")
     if "simulation.seed" in varied:
         raise SceneError(f"{path}: 'vary.simulation.seed': give the seeds as the top-level 'seeds'")
-    components = _components(varied, base, path)
+    components = axis_components(varied, base, path)
     seeds = _seeds(raw["seeds"], path) if "seeds" in raw else [None]
 
     keys = tuple(varied)
@@ -124,7 +124,7 @@ def load_sweep(path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Sweep:
     runs = []
     for index, (*values, seed) in enumerate(combinations):
         parameters = dict(zip(keys, values))
-        overrides = _overrides(parameters, components, base, path.parent)
+        overrides = scene_overrides(parameters, components, base, path.parent)
         if seed is not None:
             overrides["simulation.seed"] = seed
         scene = _scene(path, base_path, overrides)
@@ -234,12 +234,12 @@ def _seeds(value: Any, path: Path) -> Sequence[int]:
                      f"got {value!r}")
 
 
-def _components(varied: dict[str, list], base: dict[str, Any], path: Path) -> dict[str, tuple[str, int]]:
+def axis_components(varied: dict[str, list], base: dict[str, Any], path: Path) -> dict[str, tuple[str, int]]:
     """Varied keys that name one axis of a per-axis list: {key: (list key, axis index)}."""
     components = {}
     for key in varied:
         parent, _, last = key.rpartition(".")
-        if last in AXES and _is_vector(_lookup(base, parent)):
+        if last in AXES and _is_vector(lookup(base, parent)):
             if parent in varied:
                 raise SceneError(f"{path}: 'vary' has both '{parent}' and its axis '{key}': "
                                  "vary one or the other")
@@ -247,14 +247,14 @@ def _components(varied: dict[str, list], base: dict[str, Any], path: Path) -> di
     return components
 
 
-def _overrides(parameters: dict[str, Any], components: dict[str, tuple[str, int]], base: dict[str, Any],
+def scene_overrides(parameters: dict[str, Any], components: dict[str, tuple[str, int]], base: dict[str, Any],
                folder: Path) -> dict[str, Any]:
     """Scene overrides for one combination of varied values."""
     overrides: dict[str, Any] = {}
     for key, value in parameters.items():
         if key in components:
             parent, axis = components[key]
-            overrides.setdefault(parent, list(_lookup(base, parent)))[axis] = value
+            overrides.setdefault(parent, list(lookup(base, parent)))[axis] = value
         elif key.rsplit(".", 1)[-1] in PATH_KEYS and isinstance(value, str):  # relative to the sweep file
             overrides[key] = str((folder / value).resolve())
         else:
@@ -262,7 +262,7 @@ def _overrides(parameters: dict[str, Any], components: dict[str, tuple[str, int]
     return overrides
 
 
-def _lookup(table: dict[str, Any], dotted: str) -> Any:
+def lookup(table: dict[str, Any], dotted: str) -> Any:
     for name in dotted.split("."):
         if not isinstance(table, dict) or name not in table:
             return None

@@ -15,6 +15,7 @@ from pathlib import Path
 from bwr_twin.errors import BwrError
 
 MARKER_FILE = ".bwr_twin"
+RESUMABLE = ("batch", "tuning")  # kinds of output that the same command continues rather than replaces
 BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
 HTML_TAG = '<meta name="generator" content="bwr_twin.replay">'
 _HTML_TAG_WITHIN = 4096  # bytes from the start of an export where its tag sits
@@ -43,7 +44,7 @@ def check_output(path: Path, kind: str, *, overwrite: bool = False, inputs: Iter
     "export") where that would replace something the twin did not write, an input of the same
     command, or the working directory; or where the folder cannot be written.
 
-    An existing output of the same kind is replaced only with `overwrite` ("batch": resumed).
+    An existing output of the same kind is replaced only with `overwrite`, or resumed if RESUMABLE.
     """
     target = path.resolve()
     cwd = Path.cwd().resolve()
@@ -87,7 +88,7 @@ def _check_folder(path: Path, kind: str, overwrite: bool, option: str) -> None:
     if found.get("kind") != kind:
         raise BwrError(f"{path}: holds the results of a {found.get('kind')}, not of a {kind}; "
                        f"choose another {option}")
-    if kind == "run" and not overwrite:
+    if kind not in RESUMABLE and not overwrite:
         raise BwrError(f"{path}: already exists; choose another {option} or pass --overwrite")
 
 
