@@ -107,7 +107,7 @@ machine.mjcf = ["{mjcf}"]
     hold_times = [run.scene.disturbance.hold_time for run in sweep.runs[:6:2]]
     assert hold_times == [0.01, 0.02, 0.03]  # a step range keeps a stop on its grid
     last = sweep.runs[-1].scene
-    assert last.controller.output_gain == (0.01, 0.06, 0.05)  # one axis varied, the others the base's
+    assert last.controller.settings.output_gain == (0.01, 0.06, 0.05)  # one axis varied, the others the base's
     assert last.simulation.seed == 5 and last.machine.mjcf == PAPER_MJCF
     assert len({run.run_id for run in sweep.runs}) == len(sweep.runs)
     assert load_sweep(tmp_path / "sweep.toml").runs == sweep.runs  # names are stable: resume relies on it
