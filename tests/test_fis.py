@@ -661,6 +661,13 @@ def test_cli_main_refusals_and_overwrite(tmp_path, capsys, monkeypatch):
         )
     assert source.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.fis", "tipper.fis"]
+    # --overwrite replaces only a file bwr_twin.fis wrote: "keep me" stays, an earlier conversion goes.
+    assert main(["convert", "tipper.fis", "taken.fis", "--overwrite"]) == 2
+    assert "taken.fis: exists and was not written by bwr_twin.fis; it is left alone" in capsys.readouterr().err
+    assert (tmp_path / "taken.fis").read_text() == "keep me\n"
+    assert main(["convert", "tipper.fis", "mine.fis"]) == 0
+    (tmp_path / "taken.fis").unlink()
+    (tmp_path / "mine.fis").rename(tmp_path / "taken.fis")
     assert main(["convert", "tipper.fis", "taken.fis", "--overwrite"]) == 0
     assert read_fis(tmp_path / "taken.fis") == read_fis(source)
     # Out-of-range inputs are evaluated clipped, with one warning line.

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
+from bwr_twin.control.interface import Controller, ControllerContext, check_non_negative
 
 Vec3 = tuple[float, float, float]
 
@@ -28,10 +28,7 @@ class ComputedTorqueSettings:
     kd: Vec3  # 1/s: acceleration per unit of velocity error
 
     def validate(self) -> None:
-        for key in ("kp", "kd"):
-            for axis, gain in zip(("travel", "slew", "luff"), getattr(self, key)):
-                if gain < 0:
-                    raise SettingsError(f"{key} ({axis})", f"must be >= 0, got {gain}")
+        check_non_negative(self, "kp", "kd")
 
 
 class ComputedTorqueController(Controller):

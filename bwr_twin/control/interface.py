@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bwr_twin.model.machine import Machine
+from bwr_twin.model.machine import AXES, Machine
 
 
 class SettingsError(ValueError):
@@ -96,6 +96,14 @@ class Controller(ABC):
         scalar, so that it broadcasts against (runs, 3)."""
         values = np.array([getattr(s, name) for s in self.settings], dtype=float)
         return values if values.ndim == 2 else values[:, None]
+
+
+def check_non_negative(settings: Any, *keys: str) -> None:
+    """SettingsError naming the key and axis of the first per-axis gain below zero."""
+    for key in keys:
+        for axis, gain in zip(AXES, getattr(settings, key)):
+            if gain < 0:
+                raise SettingsError(f"{key} ({axis})", f"must be >= 0, got {gain}")
 
 
 def shared_settings(settings: Any) -> tuple:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
+from bwr_twin.control.interface import Controller, ControllerContext, check_non_negative
 
 Vec3 = tuple[float, float, float]
 
@@ -33,10 +33,7 @@ class PidSettings:
     holding_force: Vec3 = (0.0, 0.0, 0.0)  # F0: N, N m, N m, added to the output
 
     def validate(self) -> None:
-        for key in ("kp", "ki", "kd"):
-            for axis, gain in zip(("travel", "slew", "luff"), getattr(self, key)):
-                if gain < 0:
-                    raise SettingsError(f"{key} ({axis})", f"must be >= 0, got {gain}")
+        check_non_negative(self, "kp", "ki", "kd")
 
 
 class PidController(Controller):

@@ -6,7 +6,7 @@
     python -m bwr_twin.fis surface tests/assets/tipper.fis --out tipper.png
 
 FILE may also be a TOML rule base (by its suffix). Outputs are written atomically and never over
-the input; an existing OUT needs --overwrite. A bad file exits with status 2 and one line on
+the input; an existing OUT is replaced only with --overwrite, and only if bwr_twin.fis wrote it. A bad file exits with status 2 and one line on
 stderr, 'error: FILE:LINE: what is wrong (the limit)'; nothing is written.
 """
 
@@ -41,12 +41,12 @@ def main(argv: list[str] | None = None) -> int:
     convert = commands.add_parser("convert", help="convert between .fis and TOML rule base, by the suffixes")
     convert.add_argument("input", type=Path, help="IN: .fis or .toml")
     convert.add_argument("output", type=Path, help="OUT: .fis or .toml (not the input; must not exist)")
-    convert.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    convert.add_argument("--overwrite", action="store_true", help="replace OUT if bwr_twin.fis wrote it")
 
     surface = commands.add_parser("surface", help="plot the control surface and the membership functions")
     surface.add_argument("file", type=Path, help=".fis file (or TOML rule base) with 1 or 2 inputs")
     surface.add_argument("--out", type=Path, required=True, help="picture: .png, .svg or .pdf")
-    surface.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    surface.add_argument("--overwrite", action="store_true", help="replace --out if bwr_twin.fis wrote it")
     surface.add_argument("--output", type=int, default=1, help="which output to plot (1-based)")
     surface.add_argument("--grid", type=int, default=31, help="samples per input")
     surface.add_argument("--points", type=int, default=101, help="samples of the output range")
@@ -141,8 +141,13 @@ def _surface(path: Path, out: Path, overwrite: bool, output: int, grid: int, poi
 
     figure = surface_figure(system, output=output, grid=grid, points=points)
     # The format is named because the temporary file's suffix is not the picture's.
-    _write(out, lambda temporary: figure.savefig(temporary, format=out.suffix.lower()[1:], dpi=110))
+    kind = out.suffix.lower()[1:]
+    metadata = {"Software" if kind == "png" else "Creator": WRITTEN_BY.decode()}  # what --overwrite looks for
+    _write(out, lambda temporary: figure.savefig(temporary, format=kind, dpi=110, metadata=metadata))
     print(f"{out}: control surface of {system.name!r}, output {output} {system.outputs[output - 1].name!r}")
+
+
+WRITTEN_BY = b"bwr_twin.fis"  # in every file convert and surface write: the comment, the picture's metadata
 
 
 def _count(n: int, noun: str) -> str:
@@ -155,7 +160,8 @@ def _check_points(points: int) -> None:
 
 
 def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
-    """Refuse OUT if it is the input, a directory, exists (without overwrite) or has no folder."""
+    """Refuse OUT if it is the input, a directory, exists (without overwrite, or not written by
+    bwr_twin.fis) or has no folder."""
     if out.exists():
         with contextlib.suppress(OSError):
             if out.samefile(source):
@@ -164,6 +170,9 @@ def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
             raise SceneError(f"{out}: is a directory; name a file")
         if not overwrite:
             raise SceneError(f"{out}: already exists; choose another output or pass --overwrite")
+        if WRITTEN_BY not in out.read_bytes():  # the twin replaces only what it wrote
+            raise SceneError(f"{out}: exists and was not written by bwr_twin.fis; it is left alone, "
+                             "choose another output")
     elif not out.parent.is_dir():
         raise SceneError(f"{out}: the directory {out.parent} does not exist")
 
