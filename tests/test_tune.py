@@ -160,3 +160,17 @@ def test_the_shipped_tuning_files_load(tmp_path):
     for name in ("paper_gains", "heavy_wind"):
         tuning = load_tuning(ROOT / "bwr_twin" / "scenes" / "tuning" / f"{name}.toml")
         assert len(tuning.parameters) == 5 and not set(tuning.training_seeds) & set(tuning.held_out_seeds)
+
+
+def test_a_dask_cluster_tunes_exactly_as_the_local_pool(tmp_path):
+    from distributed import LocalCluster
+
+    write_tuning(tmp_path, evaluations=9)
+    local = tune("tune.toml", "--out", "local", "--workers", "2", cwd=tmp_path)
+    assert local.returncode == 0, local.stderr
+    loopback = {"host": "127.0.0.1", "dashboard_address": None}
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, **loopback) as cluster:
+        remote = tune("tune.toml", "--out", "dask", "--scheduler", cluster.scheduler_address, cwd=tmp_path)
+    assert remote.returncode == 0, remote.stderr
+    for name in ("history.csv", "held_out.csv"):
+        assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
