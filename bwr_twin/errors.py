@@ -1,8 +1,11 @@
-"""The project's one error hierarchy.
+"""The project's one error hierarchy, and how a command line reports it.
 
 Every message names what was wrong (a file, a key, a via point, an axis), the limit it broke
 and the value it had, so that the command line can print it as one line and exit.
 """
+
+import sys
+from collections.abc import Callable
 
 
 class BwrError(Exception):
@@ -27,3 +30,16 @@ class SceneError(BwrError):
 
 class SimulationError(BwrError):
     """A run that diverged or that MuJoCo warned about."""
+
+
+def exit_status(command: Callable[[], int], *, interrupted: str = "interrupted: nothing written") -> int:
+    """Run a command line's work and return its exit status: a BwrError is one line on stderr
+    and status 2, Ctrl-C the `interrupted` note and 130."""
+    try:
+        return command()
+    except BwrError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(interrupted, file=sys.stderr)
+        return 130

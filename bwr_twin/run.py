@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from bwr_twin.errors import BwrError
+from bwr_twin.errors import exit_status
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 
@@ -61,11 +61,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", help="machine MJCF replacing the scene's (and the controller's belief, "
                         "unless the scene names one)")
     parser.add_argument("--seed", type=int, help="disturbance seed replacing the scene's")
-    parser.add_argument("--overwrite", action="store_true", help="replace DIR, a run directory the twin wrote, once the new run is complete")
+    parser.add_argument("--overwrite", action="store_true", help="replace DIR, a run directory the twin wrote, "
+                        "once the new run is complete")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--force", action="store_true", help=FORCE_HELP)
     args = parser.parse_args(argv)
 
+    return exit_status(lambda: _run(args))
+
+
+def _run(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
     from bwr_twin.results.metrics import summary_table
     from bwr_twin.results.ownership import check_output
@@ -73,28 +78,20 @@ def main(argv: list[str] | None = None) -> int:
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate
 
-    try:
-        scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
-        check_output(args.out, "run", overwrite=args.overwrite, inputs=scene.input_files)
-        cost = estimate([scene], plots=not args.no_plots)
-        check_estimate(cost, where=scene.path, out_dir=args.out, force=args.force)
-        started = time.perf_counter()
-        with simulation_progress_bar() as progress:
-            result = simulate(scene, progress=progress)
-        simulated = time.perf_counter() - started
-        metrics = write_run(result, args.out, overwrite=args.overwrite, plots=not args.no_plots)
-    except BwrError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: nothing written", file=sys.stderr)
-        return 130
+    scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
+    check_output(args.out, "run", overwrite=args.overwrite, inputs=scene.input_files)
+    cost = estimate([scene], plots=not args.no_plots)
+    check_estimate(cost, where=scene.path, out_dir=args.out, force=args.force)
+    started = time.perf_counter()
+    with simulation_progress_bar() as progress:
+        result = simulate(scene, progress=progress)
+    simulated = time.perf_counter() - started
+    metrics = write_run(result, args.out, overwrite=args.overwrite, plots=not args.no_plots)
     print(f"{scene.path.name}: {result.trajectory.duration:g} s reclaim simulated in {simulated:.1f} s, "
           f"seed {scene.simulation.seed}, machine {scene.machine.mjcf.name}")
     print(summary_table(metrics))
     print(f"results in {args.out}/")
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

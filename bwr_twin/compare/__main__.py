@@ -21,7 +21,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bwr_twin.errors import BwrError
+from bwr_twin.errors import BwrError, exit_status
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 
@@ -40,6 +40,10 @@ def main(argv: list[str] | None = None) -> int:
     if len(args.controllers) < 2:
         parser.error("--controllers needs at least two scenes to compare")
 
+    return exit_status(lambda: _compare(args))
+
+
+def _compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from bwr_twin.compare.report import write_comparison
@@ -48,38 +52,31 @@ def main(argv: list[str] | None = None) -> int:
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate_lockstep
 
-    try:
-        base = find_scene(args.scene)
-        sources = [find_scene(name) for name in args.controllers]
-        labels = [source.stem for source in sources]
-        if len(set(labels)) != len(labels):
-            raise BwrError(f"--controllers: two scenes share the name {_first_twice(labels)!r}; rename one")
-        groups = []
-        for source in sources:
-            table = load_scene(source).controller.to_dict()
-            groups.append([load_scene(base, {"controller": _plain(table), "simulation.seed": seed})
-                           for seed in range(1, args.seeds + 1)])
-        scenes = [scene for group in groups for scene in group]
-        inputs = {file for scene in scenes for file in scene.input_files} | set(sources)
-        check_output(args.out, "comparison", overwrite=args.overwrite, inputs=inputs)
-        check_estimate(estimate(scenes, chunk=args.seeds), where=base, out_dir=args.out, force=args.force)
-        results = []
-        with tqdm(total=len(scenes), desc="comparing", unit="run", disable=not sys.stderr.isatty()) as bar:
-            for label, group in zip(labels, groups):
-                bar.set_postfix_str(label)
-                outcome = simulate_lockstep(group)
-                failed = [r for r in outcome if isinstance(r, BwrError)]
-                if failed:
-                    raise BwrError(f"controller {label}: {failed[0]}")
-                results.append(outcome)
-                bar.update(len(group))
-        table = write_comparison(args.out, labels, results, overwrite=args.overwrite)
-    except BwrError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: nothing written", file=sys.stderr)
-        return 130
+    base = find_scene(args.scene)
+    sources = [find_scene(name) for name in args.controllers]
+    labels = [source.stem for source in sources]
+    if len(set(labels)) != len(labels):
+        raise BwrError(f"--controllers: two scenes share the name {_first_twice(labels)!r}; rename one")
+    groups = []
+    for source in sources:
+        table = load_scene(source).controller.to_dict()
+        groups.append([load_scene(base, {"controller": _plain(table), "simulation.seed": seed})
+                       for seed in range(1, args.seeds + 1)])
+    scenes = [scene for group in groups for scene in group]
+    inputs = {file for scene in scenes for file in scene.input_files} | set(sources)
+    check_output(args.out, "comparison", overwrite=args.overwrite, inputs=inputs)
+    check_estimate(estimate(scenes, chunk=args.seeds), where=base, out_dir=args.out, force=args.force)
+    results = []
+    with tqdm(total=len(scenes), desc="comparing", unit="run", disable=not sys.stderr.isatty()) as bar:
+        for label, group in zip(labels, groups):
+            bar.set_postfix_str(label)
+            outcome = simulate_lockstep(group)
+            failed = [r for r in outcome if isinstance(r, BwrError)]
+            if failed:
+                raise BwrError(f"controller {label}: {failed[0]}")
+            results.append(outcome)
+            bar.update(len(group))
+    table = write_comparison(args.out, labels, results, overwrite=args.overwrite)
     print(table, end="")
     print(f"{len(labels)} controllers x {args.seeds} seeds on {base.name}; results in {args.out}/")
     return 0

@@ -20,7 +20,7 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
-from bwr_twin.errors import BwrError, SceneError
+from bwr_twin.errors import SceneError, exit_status
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -52,20 +52,17 @@ def main(argv: list[str] | None = None) -> int:
     surface.add_argument("--points", type=int, default=101, help="samples of the output range")
     args = parser.parse_args(argv)
 
-    try:
-        with _warnings_as_lines():
-            if args.command == "evaluate":
-                _evaluate(args.file, args.values, args.points, args.digits)
-            elif args.command == "convert":
-                _convert(args.input, args.output, args.overwrite)
-            else:
-                _surface(args.file, args.out, args.overwrite, args.output, args.grid, args.points)
-    except BwrError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: nothing written", file=sys.stderr)
-        return 130
+    return exit_status(lambda: _command(args))
+
+
+def _command(args: argparse.Namespace) -> int:
+    with _warnings_as_lines():
+        if args.command == "evaluate":
+            _evaluate(args.file, args.values, args.points, args.digits)
+        elif args.command == "convert":
+            _convert(args.input, args.output, args.overwrite)
+        else:
+            _surface(args.file, args.out, args.overwrite, args.output, args.grid, args.points)
     return 0
 
 
