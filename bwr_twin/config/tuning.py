@@ -17,7 +17,8 @@
     [constraints]
     saturation_fraction = 0.05                        # largest share of time at a drive limit, any axis
     drive_force_rms = [5e4, 2e6, 2e6]                 # N, N m, N m per axis, largest over the seeds
-    limits = false                                    # true: leaving the envelope or an end stop is allowed
+    limits = false                                    # true: metrics.json's limit flags (envelope, end
+                                                      # stops, drive ratings) do not make a candidate infeasible
 
     [budget]
     evaluations = 120                                 # candidates, at most
