@@ -248,7 +248,6 @@ def _rename_tables(raw: dict) -> dict:
     return out
 
 
-# Keys whose values are file paths, relative to the file that names them.
 # Keys whose values are files, relative to the scene file that gives them: these, any key that
 # ends in "_file", and the file part of a controller type "my_controller.py:MyController".
 PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})

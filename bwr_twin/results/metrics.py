@@ -52,7 +52,7 @@ class OnlineMetrics:
     # Columns of the (runs, 12) array `add` takes: errors (desired - actual) and applied forces.
     POSITION, VELOCITY, ACCELERATION, FORCE = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
 
-    # What a run may not do, in the order of `limit_times`' first index: (metrics key, message).
+    # What a run may not do, in the order of the middle index of `_first`: (metrics key, message).
     LIMITS = (
         ("left_envelope_time", "left the operating envelope"),
         ("end_stop_time", "reached its mechanical end stop"),
@@ -63,7 +63,7 @@ class OnlineMetrics:
                  period: float):
         self._limits = drive_limits  # (3, 2), N and N m
         self._period = period  # s, between samples
-        self._energy = np.zeros((runs, 3))  # J: the drives' work, every watt counted (motoring or braking)
+        self._power_sum = np.zeros((runs, 3))  # W, summed over the samples: motoring and braking both count
         self._power = np.zeros((runs, 3))
         self._envelope = envelope  # (3, 2), m and rad
         # An end stop is reached within 0.1 % of the joint's range of it: MuJoCo's stops are soft.
@@ -89,7 +89,7 @@ class OnlineMetrics:
         self._maxima.add(k, errors_and_forces)
         np.multiply(errors_and_forces[:, self.FORCE], qd_mean, out=self._power)
         np.abs(self._power, out=self._power)
-        self._energy += self._power * self._period
+        self._power_sum += self._power
         np.multiply(errors_and_forces, errors_and_forces, out=self._square)
         self._squares += self._square
         breach = self._breach
@@ -127,7 +127,7 @@ class OnlineMetrics:
                 "position_error_final": float(self._position_final[run, j]),
                 "drive_force_max": float(value[f]),
                 "drive_force_rms": float(rms[f]),
-                "drive_energy": float(self._energy[run, j]),
+                "drive_energy": float(self._power_sum[run, j] * self._period),  # J
                 "drive_limit": [float(limit[0]), float(limit[1])] if np.isfinite(limit).any() else None,
                 "saturation_fraction": float(self._saturated[run, j] / n),
             }

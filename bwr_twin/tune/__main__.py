@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from bwr_twin.errors import BwrError
+from bwr_twin.model.machine import AXES
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -171,7 +172,7 @@ def _row(tuning, generation: int, candidate: int, values: Sequence[float], resul
     row.update({p.key: float(v) for p, v in zip(tuning.parameters, values)})
     row.update({"objective": result.value, "feasible": result.feasible, "infeasible_because": result.why})
     for metric, means in result.means.items():
-        row.update({f"{metric}.{axis}": value for axis, value in zip(("travel", "slew", "luff"), means)})
+        row.update({f"{metric}.{axis}": value for axis, value in zip(AXES, means)})
     return row
 
 
