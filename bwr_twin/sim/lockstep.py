@@ -6,6 +6,10 @@ between its runs (seeds, gains, input scales, encoders, disturbances, friction l
 per-run data. `lockstep_key` says which runs may share a lockstep. A single run is a lockstep of
 one: `simulate(scene)` is `simulate_lockstep([scene])[0]`, and a run's result does not depend
 on which runs share its lockstep.
+
+`Lockstep` is the loop without its controller, for whoever drives the drives: the scene's
+controller (`simulate_lockstep`), a learning agent (`bwr_twin.gym`) or a PLC over OPC UA
+(`bwr_twin.serve`).
 """
 
 from __future__ import annotations
@@ -64,112 +68,174 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
 def simulate_lockstep(
     scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0
 ) -> list[RunResult | SimulationError]:
-    """Run scenes that share a `lockstep_key` together, on `nthread` threads (0: all cores; never
-    more threads than runs).
+    """Run scenes that share a `lockstep_key` together under their controller, on `nthread`
+    threads (0: all cores; never more threads than runs).
 
     Returns one RunResult per scene, in order, or the SimulationError of a run that diverged
     (the others go on). Raises BwrError if the path or a model is bad: that fails every run.
     """
-    if len({lockstep_key(s) for s in scenes}) != 1:
-        raise ValueError("the scenes of a lockstep must share their lockstep_key")
-    scene = scenes[0]
-    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
-    belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
-    try:
-        trajectory = Trajectory.plan(scene.trajectory, machine)
-    except (UnreachableError, EnvelopeError) as exc:
-        raise type(exc)(f"{scene.path}: {exc}") from None
-    runs = len(scenes)
-    nthread = min(nthread or os.cpu_count() or 1, runs)
-    period = scene.simulation.control_period
-    samples = round(trajectory.duration / period) + 1
-    time = trajectory.times[0] + np.arange(samples) * period
-    q_desired, qd_desired, qdd_desired = trajectory.sample(time)
-    cp_desired = machine.fk(q_desired)
+    loop = Lockstep(scenes, nthread=nthread)
+    controller = controller_class(scenes[0].controller.type)(
+        loop.controller_context(), [s.controller.settings for s in scenes]
+    )
+    with mujoco_warnings():
+        while not loop.done:
+            k = loop.k
+            q_measured, qd_measured = loop.measure()
+            command = controller.compute(q_measured, qd_measured, loop.q_desired[k], loop.qd_desired[k],
+                                         loop.qdd_desired[k], loop.alive)
+            loop.advance(command, fuzzy_output=controller.fuzzy_output,
+                         acceleration_command=controller.acceleration_command)
+            if progress is not None and loop.k % HEALTH_CHECK_EVERY == 0:
+                progress(loop.k * loop.period, loop.trajectory.duration)
+    return loop.results()
 
-    plant = Plant(machine, scenes, q0=trajectory.knots[0], nthread=nthread)
-    encoders = Encoders([s.encoders for s in scenes], period, trajectory.knots[0])
-    context = ControllerContext(runs, period, belief_machine, nthread)
-    controller = controller_class(scene.controller.type)(context, [s.controller.settings for s in scenes])
-    unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
-    disturbances = Disturbances(scenes, period)
-    recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
-    metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
 
-    wind_mean = np.array([s.plant.wind_speed for s in scenes])
-    errors_and_forces = np.zeros((runs, 12))
-    columns = {name: errors_and_forces[:, getattr(OnlineMetrics, name)]
-               for name in ("POSITION", "VELOCITY", "ACCELERATION", "FORCE")}
-    qdd, qd_mean = np.zeros((runs, 3)), np.zeros((runs, 3))
+class Lockstep:
+    """The runs of one lockstep, advanced a control period at a time by whoever computes the
+    drive forces.
 
-    def finish(j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray, inputs: tuple) -> None:
-        """Sample j's metrics and record, once its period has ended at velocity qd_next. Runs
-        before the next period's control: the controller and plant still hold sample j's."""
-        np.subtract(q_desired[j], q, out=columns["POSITION"])
-        np.subtract(qd_desired[j], qd, out=columns["VELOCITY"])
+    Each period k: `measure()` gives the encoders' reading, the reference is `q_desired[k]`,
+    `qd_desired[k]`, `qdd_desired[k]`, and `advance(command)` holds the drive forces for the
+    period. After the last period (`done`), `results()` gives each run's result.
+
+    Attributes:
+        machine: the plant's machine; `belief_machine` the controller's.
+        trajectory: the planned path; `time` the (samples,) times of the control periods (s).
+        q_desired, qd_desired, qdd_desired: (samples, 3) reference.
+        k: the control period about to be measured and advanced.
+        plant: the MuJoCo batch's owner (the true state: `plant.qpos`, `plant.qvel`).
+    """
+
+    def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0):
+        """Raises BwrError if the path or a model is bad."""
+        if len({lockstep_key(s) for s in scenes}) != 1:
+            raise ValueError("the scenes of a lockstep must share their lockstep_key")
+        self.scenes = list(scenes)
+        scene = scenes[0]
+        self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+        self.belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
+        try:
+            self.trajectory = trajectory = Trajectory.plan(scene.trajectory, machine)
+        except (UnreachableError, EnvelopeError) as exc:
+            raise type(exc)(f"{scene.path}: {exc}") from None
+        self.runs = runs = len(scenes)
+        self.nthread = min(nthread or os.cpu_count() or 1, runs)
+        self.period = period = scene.simulation.control_period
+        self.samples = samples = round(trajectory.duration / period) + 1
+        self.time = trajectory.times[0] + np.arange(samples) * period
+        self.q_desired, self.qd_desired, self.qdd_desired = trajectory.sample(self.time)
+        self._cp_desired = machine.fk(self.q_desired)
+
+        self.plant = Plant(machine, scenes, q0=trajectory.knots[0], nthread=self.nthread)
+        self._encoders = Encoders([s.encoders for s in scenes], period, trajectory.knots[0])
+        self._disturbances = Disturbances(scenes, period)
+        self._recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
+        self._metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
+        self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
+        self._unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
+        self._errors_and_forces = np.zeros((runs, 12))
+        self._columns = {name: self._errors_and_forces[:, getattr(OnlineMetrics, name)]
+                         for name in ("POSITION", "VELOCITY", "ACCELERATION", "FORCE")}
+        self._qdd, self._qd_mean = np.zeros((runs, 3)), np.zeros((runs, 3))
+        self._q, self._qd, self._q_last, self._qd_last = (np.zeros((runs, 3)) for _ in range(4))
+        self._inputs: tuple = ()
+        self._measured: tuple = ()
+        self.k = 0
+
+    @property
+    def done(self) -> bool:
+        return self.k >= self.samples
+
+    @property
+    def alive(self) -> np.ndarray | None:
+        """Indices of the runs still stepped; None: all."""
+        return self.plant.alive
+
+    def controller_context(self) -> ControllerContext:
+        """What a controller of these runs may know: the belief machine, never the plant."""
+        return ControllerContext(self.runs, self.period, self.belief_machine, self.nthread)
+
+    def measure(self) -> tuple[np.ndarray, np.ndarray]:
+        """The encoders' (runs, 3) positions and velocities at the start of period k; once a period."""
+        # This period's buffers; the last period's kept for its metrics.
+        self._q, self._q_last, self._qd, self._qd_last = self._q_last, self._q, self._qd_last, self._qd
+        np.copyto(self._q, self.plant.qpos)
+        np.copyto(self._qd, self.plant.qvel)
+        if self.k:
+            self._finish(self.k - 1, self._q_last, self._qd_last, self._qd)
+        self._measured = self._encoders.measure(self._q, self._qd)
+        return self._measured
+
+    def advance(self, command: np.ndarray, *, fuzzy_output: np.ndarray | None = None,
+                acceleration_command: np.ndarray | None = None) -> None:
+        """Hold the (runs, 3) drive forces (N, N m) over period k, with the period's disturbances.
+
+        `fuzzy_output` and `acceleration_command`, if the controller has them, are recorded.
+        """
+        k = self.k
+        q_measured, qd_measured = self._measured
+        disturbance = self._disturbances.forces.sample(k)
+        gust = self._disturbances.gusts.sample(k)
+        self.plant.step(command, disturbance, gust)
+        self._inputs = (q_measured, qd_measured, command, disturbance, gust,
+                        _or(fuzzy_output, self._unrecorded), _or(acceleration_command, self._unrecorded))
+        self.k = k = k + 1
+        if k % HEALTH_CHECK_EVERY == 0:
+            self.plant.check_health()
+        if k == self.samples:
+            self._finish(k - 1, self._q, self._qd, self.plant.qvel)
+            self.plant.check_health()
+
+    def _finish(self, j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray) -> None:
+        """Sample j's metrics and record, once its period has ended at velocity qd_next."""
+        columns, qdd, period = self._columns, self._qdd, self.period
+        np.subtract(self.q_desired[j], q, out=columns["POSITION"])
+        np.subtract(self.qd_desired[j], qd, out=columns["VELOCITY"])
         np.divide(np.subtract(qd_next, qd, out=qdd), period, out=qdd)  # mean over the period
-        np.subtract(qdd_desired[j], qdd, out=columns["ACCELERATION"])
-        np.copyto(columns["FORCE"], plant.drive_force)
-        q_measured, qd_measured, command, disturbance, gust = inputs
-        np.multiply(np.add(qd, qd_next, out=qd_mean), 0.5, out=qd_mean)
-        metrics.add(j, errors_and_forces, command, q, qd_mean)
-        row = recorder.row(j)
+        np.subtract(self.qdd_desired[j], qdd, out=columns["ACCELERATION"])
+        np.copyto(columns["FORCE"], self.plant.drive_force)
+        q_measured, qd_measured, command, disturbance, gust, fuzzy_output, acceleration_command = self._inputs
+        np.multiply(np.add(qd, qd_next, out=self._qd_mean), 0.5, out=self._qd_mean)
+        self._metrics.add(j, self._errors_and_forces, command, q, self._qd_mean)
+        row = self._recorder.row(j)
         if row < 0:
             return
-        metrics.add_cp_error(j, np.linalg.norm(cp_desired[j] - machine.fk(q), axis=1))
-        for name, value in (("q_desired", q_desired[j]), ("q", q), ("q_measured", q_measured),
-                            ("qd_desired", qd_desired[j]), ("qd", qd), ("qd_measured", qd_measured),
-                            ("qdd_desired", qdd_desired[j]), ("qdd", qdd),
-                            ("fuzzy_output", _or(controller.fuzzy_output, unrecorded)),
-                            ("acceleration_command", _or(controller.acceleration_command, unrecorded)),
-                            ("drive_force_command", command), ("drive_force", plant.drive_force),
+        self._metrics.add_cp_error(j, np.linalg.norm(self._cp_desired[j] - self.machine.fk(q), axis=1))
+        signals = self._recorder.signals
+        for name, value in (("q_desired", self.q_desired[j]), ("q", q), ("q_measured", q_measured),
+                            ("qd_desired", self.qd_desired[j]), ("qd", qd), ("qd_measured", qd_measured),
+                            ("qdd_desired", self.qdd_desired[j]), ("qdd", qdd),
+                            ("fuzzy_output", fuzzy_output), ("acceleration_command", acceleration_command),
+                            ("drive_force_command", command), ("drive_force", self.plant.drive_force),
                             ("disturbance", disturbance)):
-            recorder.signals[name][row] = value
-        recorder.wind_speed[row] = wind_mean + gust
+            signals[name][row] = value
+        self._recorder.wind_speed[row] = self._wind_mean + gust
 
-    q, qd, q_last, qd_last = (np.zeros((runs, 3)) for _ in range(4))
-    inputs: tuple = ()
-    with mujoco_warnings():
-        for k in range(samples):
-            q, q_last, qd, qd_last = q_last, q, qd_last, qd  # this period's buffers; last period's kept
-            np.copyto(q, plant.qpos)
-            np.copyto(qd, plant.qvel)
-            if k:
-                finish(k - 1, q_last, qd_last, qd, inputs)
-            q_measured, qd_measured = encoders.measure(q, qd)
-            command = controller.compute(q_measured, qd_measured, q_desired[k], qd_desired[k],
-                                         qdd_desired[k], plant.alive)
-            disturbance = disturbances.forces.sample(k)
-            gust = disturbances.gusts.sample(k)
-            plant.step(command, disturbance, gust)
-            inputs = (q_measured, qd_measured, command, disturbance, gust)
-            if k % HEALTH_CHECK_EVERY == HEALTH_CHECK_EVERY - 1:
-                plant.check_health()
-                if progress is not None:
-                    progress((k + 1) * period, trajectory.duration)
-        finish(samples - 1, q, qd, plant.qvel, inputs)
-        plant.check_health()
-
-    results: list[RunResult | SimulationError] = []
-    for run, run_scene in enumerate(scenes):
-        if run in plant.failures:
-            results.append(SimulationError(
-                f"{run_scene.path}: the simulation diverged ({plant.failures[run]}); try smaller gains or timestep"
-            ))
-            continue
-        run_metrics = metrics.result(run, time)
-        run_metrics["run"] = {
-            "scene": str(run_scene.path),
-            "mjcf": str(run_scene.machine.mjcf),
-            "controller_mjcf": str(run_scene.controller_mjcf),
-            "seed": run_scene.simulation.seed,
-            "duration": trajectory.duration,
-            "control_period": period,
-            "timestep": run_scene.simulation.timestep,
-        }
-        results.append(recorder.run_result(run, scene=run_scene, machine=machine, trajectory=trajectory,
-                                           time=time, metrics=run_metrics))
-    return results
+    def results(self) -> list[RunResult | SimulationError]:
+        """Each run's result, or the SimulationError of a run that diverged; once `done`."""
+        if not self.done:
+            raise RuntimeError(f"the lockstep is at control period {self.k} of {self.samples}")
+        results: list[RunResult | SimulationError] = []
+        for run, scene in enumerate(self.scenes):
+            if run in self.plant.failures:
+                results.append(SimulationError(
+                    f"{scene.path}: the simulation diverged ({self.plant.failures[run]}); try smaller gains or timestep"
+                ))
+                continue
+            metrics = self._metrics.result(run, self.time)
+            metrics["run"] = {
+                "scene": str(scene.path),
+                "mjcf": str(scene.machine.mjcf),
+                "controller_mjcf": str(scene.controller_mjcf),
+                "seed": scene.simulation.seed,
+                "duration": self.trajectory.duration,
+                "control_period": self.period,
+                "timestep": scene.simulation.timestep,
+            }
+            results.append(self._recorder.run_result(run, scene=scene, machine=self.machine,
+                                                     trajectory=self.trajectory, time=self.time, metrics=metrics))
+        return results
 
 
 def _or(signal: np.ndarray | None, missing: np.ndarray) -> np.ndarray:
