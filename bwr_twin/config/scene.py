@@ -128,6 +128,38 @@ class PlantSection:
 
 
 @dataclass(frozen=True)
+class WindrowSection:
+    """A windrow: a flat crest `length` x `crest_width` at `height`, its flanks and its ends
+    falling at the angle of repose to the ground."""
+
+    length: float  # m, of the crest, along the rail
+    crest_width: float  # m
+    height: float  # m
+    angle_of_repose: float  # deg
+    centre: tuple[float, float]  # m, world X and Y of the crest's centre
+
+
+@dataclass(frozen=True)
+class StockpileSection:
+    """The pile the wheel digs: a windrow, or a surveyed surface read from a file."""
+
+    bulk_density: float  # kg/m^3, of the stockpiled (loose) material
+    grid_spacing: float = 0.25  # m between height samples: a 0.8 m cut spans three
+    windrow: WindrowSection | None = None
+    surface_file: Path | None = None  # .npz with x, y (grid lines, m) and z (heights, m), or .csv x,y,z points
+
+
+@dataclass(frozen=True)
+class DiggingSection:
+    """The digging load: the wheel's cutting power P = cutting_energy x Q + idle_power, Q the
+    volume it digs a second; the cutting force at the rim is that power over the rim speed."""
+
+    cutting_energy: float  # J/m^3 of material dug
+    idle_power: float = 0.0  # W, the wheel drive turning empty
+    lateral_ratio: float = 0.4  # force against the slewing, as a share of the tangential force
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path  # the scene file, for messages
     machine: MachineSection
@@ -137,6 +169,8 @@ class Scene:
     disturbance: DisturbanceSection
     controller: ControllerSection
     plant: PlantSection = field(default_factory=PlantSection)
+    stockpile: StockpileSection | None = None
+    digging: DiggingSection | None = None
 
     @property
     def controller_mjcf(self) -> Path:
@@ -145,7 +179,8 @@ class Scene:
     @property
     def input_files(self) -> tuple[Path, ...]:
         """The files this scene reads: nothing the twin writes may replace them."""
-        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files)
+        pile = (self.stockpile.surface_file,) if self.stockpile and self.stockpile.surface_file else ()
+        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
@@ -362,7 +397,8 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
         if args[-1] is Ellipsis:
             return tuple(_convert(args[0], v, path, f"{key}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
-            raise SceneError(f"{path}: '{key}' must hold {len(args)} values (travel, slew, luff), got {len(value)}")
+            meaning = " (travel, slew, luff)" if key.endswith(("resolution", "amplitude", "frictionloss", "gain")) else ""
+            raise SceneError(f"{path}: '{key}' must hold {len(args)} values{meaning}, got {len(value)}")
         return tuple(_convert(a, v, path, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if hint is float:
         if not is_number(value):
@@ -453,11 +489,40 @@ def _check_rules(scene: Scene) -> None:
                 f"{p}: via point {i + 1} (t = {via[i].t} s) must come after via point {i} "
                 f"(t = {via[i - 1].t} s): times must increase"
             )
+    _check_stockpile(scene)
     files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
     files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
     for key, file in files.items():
         if file is not None and not file.is_file():
             raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
+
+
+def _check_stockpile(scene: Scene) -> None:
+    p, pile, digging = scene.path, scene.stockpile, scene.digging
+    if digging is not None:
+        if pile is None:
+            raise SceneError(f"{p}: [digging] needs a [stockpile] to dig")
+        for key in ("cutting_energy", "idle_power", "lateral_ratio"):
+            if getattr(digging, key) < 0:
+                raise SceneError(f"{p}: 'digging.{key}' must be >= 0, got {getattr(digging, key)}")
+    if pile is None:
+        return
+    for key in ("bulk_density", "grid_spacing"):
+        if not getattr(pile, key) > 0:
+            raise SceneError(f"{p}: 'stockpile.{key}' must be > 0, got {getattr(pile, key)}")
+    if (pile.windrow is None) == (pile.surface_file is None):
+        raise SceneError(f"{p}: [stockpile] needs either a [stockpile.windrow] or a 'stockpile.surface_file', not both")
+    if pile.surface_file is not None and not pile.surface_file.is_file():
+        raise SceneError(f"{p}: 'stockpile.surface_file' names a file that does not exist: {pile.surface_file}")
+    if pile.windrow is not None:
+        w = pile.windrow
+        for key in ("length", "height"):
+            if not getattr(w, key) > 0:
+                raise SceneError(f"{p}: 'stockpile.windrow.{key}' must be > 0, got {getattr(w, key)}")
+        if w.crest_width < 0:
+            raise SceneError(f"{p}: 'stockpile.windrow.crest_width' must be >= 0, got {w.crest_width}")
+        if not 0 < w.angle_of_repose < 90:
+            raise SceneError(f"{p}: 'stockpile.windrow.angle_of_repose' must lie in (0, 90) deg, got {w.angle_of_repose}")
 
 
 def _plain(value: Any) -> Any:

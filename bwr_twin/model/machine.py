@@ -19,12 +19,15 @@ import mujoco
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
-from bwr_twin.model.spec import Edits, Payload, compile_model
+from bwr_twin.model.spec import Edits, Heights, Payload, compile_model
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
 CP_SITE = "bucket_wheel_center"
 ENVELOPE_KEY = "envelope_{axis}"
+WHEEL_KEYS = ("wheel_diameter", "wheel_width", "wheel_buckets", "bucket_volume", "wheel_discharges_per_minute")
+WHEEL_POWER_KEY = "wheel_power"  # optional: without it, the cutting force has no ceiling
+RAIL_CLEARANCE_KEY = "rail_clearance"
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
@@ -63,6 +66,32 @@ class Geometry:
     boom_angle0: float  # elevation of pivot-to-CP at luff = 0 [rad]
 
 
+@dataclass(frozen=True)
+class Wheel:
+    """The bucket wheel's cutting geometry and capacity, from the MJCF's `<custom>` numerics."""
+
+    diameter: float  # m, the cutting circle
+    width: float  # m, the buckets' width
+    buckets: int
+    bucket_volume: float  # m^3 one bucket holds
+    discharges_per_minute: float  # buckets emptied a minute (buckets x rpm)
+    power: float = np.inf  # W, the wheel drive's rating: the most it can cut with
+
+    @property
+    def radius(self) -> float:
+        return self.diameter / 2
+
+    @property
+    def capacity(self) -> float:
+        """The most material the buckets carry away, m^3/s."""
+        return self.discharges_per_minute * self.bucket_volume / 60.0
+
+    @property
+    def rim_speed(self) -> float:
+        """Speed of the bucket lips, m/s."""
+        return np.pi * self.diameter * self.discharges_per_minute / self.buckets / 60.0
+
+
 class Machine:
     """A compiled reclaimer model with its geometry, envelope and kinematics.
 
@@ -73,14 +102,18 @@ class Machine:
         envelope: (3, 2) operating envelope per axis, [low, high] in m and rad.
         joint_range: (3, 2) mechanical end stops (inf where a joint is unlimited).
         drive_limits: (3, 2) generalised force limits of the drives in N and N m (inf if none).
+        wheel: the bucket wheel, or None if the file does not describe one (it cannot dig).
+        rail_clearance: half-width (m) of the strip beside the rail axis that the machine's
+            carriage takes, where no stockpile may lie (0 if the file does not say).
     """
 
-    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = ()):
+    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None):
         """Compile `path`, adding each payload as a point mass on its body (what the plant
-        carries and the file does not say, e.g. ore caked on the bucket wheel)."""
+        carries and the file does not say, e.g. ore caked on the bucket wheel), and the
+        stockpile, if given, as a heightfield in the world."""
         self.path = Path(path)
         self.payloads = tuple(payloads)
-        self.model = compile_model(self.path, Edits(payloads=self.payloads))
+        self.model = compile_model(self.path, Edits(payloads=self.payloads, stockpile=stockpile))
         self.joint_ids = self._check_joints()
         self.actuator_ids = self._check_actuators()
         self.cp_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, CP_SITE)
@@ -95,6 +128,9 @@ class Machine:
         )
         self.envelope = self._read_envelope()
         self.drive_limits = self._drive_limits()
+        self.wheel = self._read_wheel()
+        rail_clearance = self._numeric(RAIL_CLEARANCE_KEY)
+        self.rail_clearance = float(rail_clearance[0]) if rail_clearance is not None else 0.0
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
@@ -182,20 +218,46 @@ class Machine:
             boom_angle0=float(np.arctan2(boom[2], boom[0])),
         )
 
-    def _read_envelope(self) -> np.ndarray:
+    def _numeric(self, key: str) -> np.ndarray | None:
+        """The values of `<custom><numeric name=key>`, or None if the file has none."""
         m = self.model
+        n = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, key)
+        if n < 0:
+            return None
+        adr, size = m.numeric_adr[n], m.numeric_size[n]
+        return m.numeric_data[adr : adr + size].copy()
+
+    def _read_envelope(self) -> np.ndarray:
         envelope = self.joint_range.copy()
         for j, axis in enumerate(AXES):
             key = ENVELOPE_KEY.format(axis=axis)
-            n = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, key)
-            if n < 0:
+            values = self._numeric(key)
+            if values is None:
                 continue
-            adr, size = m.numeric_adr[n], m.numeric_size[n]
-            low, high = (m.numeric_data[adr : adr + size].tolist() + [np.nan, np.nan])[:2]
-            if size != 2 or not low < high:
+            low, high = (values.tolist() + [np.nan, np.nan])[:2]
+            if len(values) != 2 or not low < high:
                 raise ModelError(f"{self.path}: custom numeric '{key}' must hold two values, low < high")
             envelope[j] = (low, high)
         return envelope
+
+    def _read_wheel(self) -> Wheel | None:
+        values = {key: self._numeric(key) for key in WHEEL_KEYS}
+        missing = [key for key, value in values.items() if value is None]
+        if len(missing) == len(WHEEL_KEYS):
+            return None
+        if missing:
+            raise ModelError(f"{self.path}: the bucket wheel needs custom numeric '{missing[0]}' (model contract)")
+        for key, value in values.items():
+            if len(value) != 1 or not value[0] > 0:
+                raise ModelError(f"{self.path}: custom numeric '{key}' must hold one value > 0")
+        (diameter, width, buckets, volume, discharges) = (float(values[key][0]) for key in WHEEL_KEYS)
+        if buckets != round(buckets):
+            raise ModelError(f"{self.path}: custom numeric 'wheel_buckets' must be a whole number, got {buckets}")
+        power = self._numeric(WHEEL_POWER_KEY)
+        if power is not None and (len(power) != 1 or not power[0] > 0):
+            raise ModelError(f"{self.path}: custom numeric '{WHEEL_POWER_KEY}' must hold one value > 0")
+        return Wheel(diameter, width, int(buckets), volume, discharges,
+                     float(power[0]) if power is not None else np.inf)
 
     def _drive_limits(self) -> np.ndarray:
         m = self.model
@@ -226,6 +288,22 @@ class Machine:
             ],
             axis=-1,
         )
+
+    def joint_force(self, q: np.ndarray, point: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """J^T F: the (runs, 3) joint forces (N, N m) of world forces `force` (runs, 3) (N) acting
+        at world points `point` (runs, 3) (m) fixed to the boom, at joint values q (runs, 3)."""
+        g = self.geometry
+        cos, sin = np.cos(q[:, 1]), np.sin(q[:, 1])
+        arm_x = point[:, 0] - (q[:, 0] + g.slew_axis_xy[0])  # from the slew axis
+        arm_y = point[:, 1] - g.slew_axis_xy[1]
+        rx, ry = arm_x - g.pivot_reach * cos, arm_y - g.pivot_reach * sin  # from the luff pivot
+        rz = point[:, 2] - g.pivot_height
+        out = np.empty_like(force)
+        out[:, 0] = force[:, 0]
+        out[:, 1] = arm_x * force[:, 1] - arm_y * force[:, 0]  # (Z x arm) . F
+        # ((sin, -cos, 0) x r) . F: the luff axis is world -Y turned by the slew.
+        out[:, 2] = -cos * rz * force[:, 0] - sin * rz * force[:, 1] + (sin * ry + cos * rx) * force[:, 2]
+        return out
 
     def ik(self, p: np.ndarray, *, label: str = "target", check_envelope: bool = True) -> np.ndarray:
         """Joint values (travel, slew, luff) that put the CP at world point p (m).

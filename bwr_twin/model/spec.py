@@ -16,10 +16,23 @@ from pathlib import Path
 from typing import Protocol
 
 import mujoco
+import numpy as np
 
 from bwr_twin.errors import ModelError
 
 _POINT_INERTIA = 1e-6  # kg m^2: a point mass, as MuJoCo needs a positive inertia
+
+
+STOCKPILE = "stockpile"  # name of the pile's hfield asset and geom
+_STOCKPILE_BASE = 1.0  # m: depth of the hfield's base box below the yard floor (drawing only)
+
+
+class Heights(Protocol):
+    """A height grid: z[iy, ix] (m) at grid lines x[ix], y[iy] (m), evenly spaced."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
 
 
 class Payload(Protocol):
@@ -36,6 +49,9 @@ class Edits:
 
     Attributes:
         payloads: point masses to add, each as a child body of the body it names.
+        stockpile: a pile to stand in the world as an hfield named STOCKPILE (no contacts, no
+            mass: the wheel's cut is computed on the heights, `bwr_twin.stockpile`), so that
+            rays (`mj_ray`) measure it as a laser scanner would.
         timestep: the physics timestep in s; None keeps the file's.
         physics_only: delete every geom that has no contacts and meets no fluid (the visual
             ones), keeping the wind areas of MuJoCo's ellipsoid fluid model.
@@ -45,6 +61,7 @@ class Edits:
     """
 
     payloads: Sequence[Payload] = ()
+    stockpile: Heights | None = None
     timestep: float | None = None
     physics_only: bool = False
     rigid_body_only: bool = False
@@ -80,6 +97,8 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
                 inertia=[_POINT_INERTIA] * 3,
                 explicitinertial=True,
             )
+        if edits.stockpile is not None:
+            _add_stockpile(spec, edits.stockpile)
         if edits.timestep is not None:
             spec.option.timestep = edits.timestep
         if edits.rigid_body_only:
@@ -92,3 +111,35 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
     except ValueError as exc:
         first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
         raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
+
+
+def _add_stockpile(spec: mujoco.MjSpec, pile: Heights) -> None:
+    """The pile as an hfield geom on the world body: row 0 of its data lies at the lowest Y."""
+    top = max(float(pile.z.max()), 1e-3)
+    spec.add_hfield(
+        name=STOCKPILE,
+        nrow=len(pile.y),
+        ncol=len(pile.x),
+        size=[(pile.x[-1] - pile.x[0]) / 2, (pile.y[-1] - pile.y[0]) / 2, top, _STOCKPILE_BASE],
+        userdata=(pile.z / top).ravel().tolist(),
+    )
+    spec.worldbody.add_geom(
+        name=STOCKPILE,
+        type=mujoco.mjtGeom.mjGEOM_HFIELD,
+        hfieldname=STOCKPILE,
+        pos=[(pile.x[0] + pile.x[-1]) / 2, (pile.y[0] + pile.y[-1]) / 2, 0.0],
+        contype=0,
+        conaffinity=0,
+        group=1,
+        rgba=[0.55, 0.27, 0.15, 1.0],
+    )
+
+
+def set_stockpile_heights(model: mujoco.MjModel, z: np.ndarray) -> None:
+    """Write a run's pile heights (m, on the grid the model was compiled with) into the model's
+    hfield, e.g. to scan the pile as dug with `mj_ray`. The heights only ever fall, so the
+    compiled scale holds them."""
+    hfield = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, STOCKPILE)
+    nrow, ncol = model.hfield_nrow[hfield], model.hfield_ncol[hfield]
+    adr, top = model.hfield_adr[hfield], model.hfield_size[hfield, 2]
+    model.hfield_data[adr : adr + nrow * ncol] = (np.asarray(z) / top).ravel()

@@ -159,6 +159,16 @@ def summary_table(metrics: dict) -> str:
             f"{_largest(m, j, 'acceleration', '/s^2'):>30} {to_display(j, m['position_error_rms']):>9.4g} {UNITS[j]}"
         )
     lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
+    reclaim = metrics.get("reclaim")
+    if reclaim is not None:
+        lines.append(
+            f"reclaimed {reclaim['mass_t']:.1f} t ({reclaim['volume_m3']:.1f} m³): mean {reclaim['rate_mean_tph']:.0f} t/h "
+            f"over {reclaim['carrying_time_s']:.0f} s of carrying, CV {reclaim['rate_cv']:.2f}, peak "
+            f"{reclaim['rate_max_tph']:.0f} t/h; spilled {reclaim['spill_t']:.1f} t; digging load up to "
+            f"{reclaim['digging_force_max_N'] / 1e3:.0f} kN"
+        )
+        if reclaim["spill_t"] > 0:
+            lines.append(f"warning: the wheel dug more than its buckets hold: {reclaim['spill_t']:.1f} t spilled")
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
 

@@ -58,6 +58,10 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
     save("errors_acceleration.png", "Acceleration error, desired - actual (paper Fig. 10, 13 right)",
          [("error", result.qdd_desired - result.qdd, "C3-")], "/s²")
 
+    if result.reclaim is not None:
+        from bwr_twin.results.reclaim_plots import save_reclaim_figures
+
+        paths += save_reclaim_figures(result, out_dir, subtitle)
     if np.isnan(result.fuzzy_output).all():  # a controller without fuzzy logic
         return paths + [_drive_force_figure(result, subtitle, out_dir), _cp_figure(result, subtitle, out_dir)]
     # Fig. 9: the FLC output itself (dimensionless) and the acceleration command it makes.

@@ -14,6 +14,7 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.stockpile.reclaim import ReclaimRecord
 
 # The (runs, 3) signals recorded, as RunResult names them.
 SIGNALS = (
@@ -29,7 +30,7 @@ SIGNALS = (
     "acceleration_command",
     "drive_force_command",
     "drive_force",
-    "disturbance",
+    "disturbance",  # the random disturbance plus the digging load, on the joints
 )
 
 
@@ -60,6 +61,7 @@ class RunResult:
     drive_force: np.ndarray  # what the actuators applied (after their force limits)
     disturbance: np.ndarray
     wind_speed: np.ndarray  # (n,), m/s along the wind direction
+    reclaim: ReclaimRecord | None = None  # the pile and the reclaim signals, if the scene has a stockpile
 
     @property
     def cp_desired(self) -> np.ndarray:

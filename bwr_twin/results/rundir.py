@@ -5,6 +5,7 @@ Layout of a run directory (the output contract of docs/contracts.md, plus more):
     metrics.json      per-axis error maxima (signed), their times, RMS, drive saturation
     timeseries.csv    every signal at the record period; units in the column names
     scene.json        the resolved scene, so the run can be replayed without its files' paths
+    pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m)
     *.png             the paper's figures for this run (bwr_twin.results.plots)
 """
 
@@ -26,6 +27,7 @@ from bwr_twin.results.ownership import check_output, mark
 from bwr_twin.results.record import RunResult
 
 METRICS_FILE = "metrics.json"
+PILE_FILE = "pile.npz"
 TIMESERIES_FILE = "timeseries.csv"
 SCENE_FILE = "scene.json"
 
@@ -78,6 +80,13 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
             columns.append(cp[:, c])
     names.append("wind_speed_m/s")
     columns.append(result.wind_speed)
+    reclaim = result.reclaim
+    if reclaim is not None:
+        names += ["reclaim_rate_t/h", "cut_depth_m", "wheel_power_W"]
+        columns += [reclaim.rate, reclaim.cut_depth, reclaim.wheel_power]
+        for c, coordinate in enumerate("xyz"):
+            names.append(f"digging_force_{coordinate}_N")
+            columns.append(reclaim.digging_force[:, c])
     return names, np.column_stack(columns)
 
 
@@ -163,6 +172,9 @@ def write_run(
         np.savetxt(staging / TIMESERIES_FILE, values, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
         (staging / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n")
         (staging / SCENE_FILE).write_text(json.dumps(result.scene.to_dict(), indent=2) + "\n")
+        if result.reclaim is not None:
+            pile = result.reclaim
+            np.savez_compressed(staging / PILE_FILE, x=pile.x, y=pile.y, z_start=pile.z_start, z_end=pile.z_end)
         if plots:
             from bwr_twin.results.plots import save_run_figures
 

@@ -30,6 +30,8 @@ from bwr_twin.results.record import Recorder, RunResult
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.plant import Plant, mujoco_warnings
+from bwr_twin.stockpile.reclaim import Reclaim
+from bwr_twin.stockpile.surface import build_surface
 
 HEALTH_CHECK_EVERY = 100  # control periods between checks for divergence, and progress reports
 
@@ -38,7 +40,7 @@ Progress = Callable[[float, float], None]
 
 def lockstep_key(scene: Scene) -> tuple:
     """What the runs of one lockstep share: the compiled models, the path, the controller and
-    its settings other than numbers (a rule base, say), the timing."""
+    its settings other than numbers (a rule base, say), the timing, the stockpile."""
     sim = scene.simulation
     return (
         str(scene.machine.mjcf),
@@ -50,23 +52,27 @@ def lockstep_key(scene: Scene) -> tuple:
         sim.timestep,
         sim.control_period,
         sim.record_period,
+        scene.stockpile,
     )
 
 
-def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0) -> RunResult:
+def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0,
+             pile_frame_period: float | None = None) -> RunResult:
     """Run one scene headless. Raises BwrError subclasses on bad input or divergence.
 
     `progress(done, total)`, if given, hears how many of the path's seconds are simulated, about
-    once a simulated second.
+    once a simulated second. `pile_frame_period` (s), if given, keeps the pile as it is dug that
+    often, for a replay.
     """
-    (result,) = simulate_lockstep([scene], progress=progress, nthread=nthread)
+    (result,) = simulate_lockstep([scene], progress=progress, nthread=nthread, pile_frame_period=pile_frame_period)
     if isinstance(result, BwrError):
         raise result
     return result
 
 
 def simulate_lockstep(
-    scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0
+    scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0,
+    pile_frame_period: float | None = None,
 ) -> list[RunResult | SimulationError]:
     """Run scenes that share a `lockstep_key` together under their controller, on `nthread`
     threads (0: all cores; never more threads than runs).
@@ -74,7 +80,7 @@ def simulate_lockstep(
     Returns one RunResult per scene, in order, or the SimulationError of a run that diverged
     (the others go on). Raises BwrError if the path or a model is bad: that fails every run.
     """
-    loop = Lockstep(scenes, nthread=nthread)
+    loop = Lockstep(scenes, nthread=nthread, pile_frame_period=pile_frame_period)
     controller = controller_class(scenes[0].controller.type)(
         loop.controller_context(), [s.controller.settings for s in scenes]
     )
@@ -105,15 +111,18 @@ class Lockstep:
         q_desired, qd_desired, qdd_desired: (samples, 3) reference.
         k: the control period about to be measured and advanced.
         plant: the MuJoCo batch's owner (the true state: `plant.qpos`, `plant.qvel`).
+        reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
     """
 
-    def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0):
-        """Raises BwrError if the path or a model is bad."""
+    def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None):
+        """Raises BwrError if the path, a model or the stockpile is bad. `pile_frame_period` (s):
+        keep the pile as it is dug that often, for a replay."""
         if len({lockstep_key(s) for s in scenes}) != 1:
             raise ValueError("the scenes of a lockstep must share their lockstep_key")
         self.scenes = list(scenes)
         scene = scenes[0]
-        self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+        surface = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
+        self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface)
         self.belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
         try:
             self.trajectory = trajectory = Trajectory.plan(scene.trajectory, machine)
@@ -132,6 +141,10 @@ class Lockstep:
         self._disturbances = Disturbances(scenes, period)
         self._recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
         self._metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
+        self.reclaim = None
+        if surface is not None:
+            frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
+            self.reclaim = Reclaim(scenes, machine, surface, period, len(self._recorder.samples), frame_every)
         self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
         self._unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
         self._errors_and_forces = np.zeros((runs, 12))
@@ -176,6 +189,8 @@ class Lockstep:
         k = self.k
         q_measured, qd_measured = self._measured
         disturbance = self._disturbances.forces.sample(k)
+        if self.reclaim is not None:
+            disturbance = disturbance + self.reclaim.step(k, self._q, self.plant.alive)
         gust = self._disturbances.gusts.sample(k)
         self.plant.step(command, disturbance, gust)
         self._inputs = (q_measured, qd_measured, command, disturbance, gust,
@@ -184,6 +199,8 @@ class Lockstep:
         if k % HEALTH_CHECK_EVERY == 0:
             self.plant.check_health()
         if k == self.samples:
+            if self.reclaim is not None:
+                self.reclaim.finish()
             self._finish(k - 1, self._q, self._qd, self.plant.qvel)
             self.plant.check_health()
 
@@ -211,6 +228,8 @@ class Lockstep:
                             ("disturbance", disturbance)):
             signals[name][row] = value
         self._recorder.wind_speed[row] = self._wind_mean + gust
+        if self.reclaim is not None:
+            self.reclaim.record(row)
 
     def results(self) -> list[RunResult | SimulationError]:
         """Each run's result, or the SimulationError of a run that diverged; once `done`."""
@@ -224,6 +243,8 @@ class Lockstep:
                 ))
                 continue
             metrics = self._metrics.result(run, self.time)
+            if self.reclaim is not None:
+                metrics["reclaim"] = self.reclaim.metrics(run)
             metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),
@@ -233,8 +254,11 @@ class Lockstep:
                 "control_period": self.period,
                 "timestep": scene.simulation.timestep,
             }
-            results.append(self._recorder.run_result(run, scene=scene, machine=self.machine,
-                                                     trajectory=self.trajectory, time=self.time, metrics=metrics))
+            result = self._recorder.run_result(run, scene=scene, machine=self.machine,
+                                               trajectory=self.trajectory, time=self.time, metrics=metrics)
+            if self.reclaim is not None:
+                result.reclaim = self.reclaim.run_record(run)
+            results.append(result)
         return results
 
 

@@ -1,0 +1,69 @@
+"""The reclaim's figures for one run with a stockpile: the pile before and after as height maps,
+and the reclaim rate, cut depth, wheel power and digging load over time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from bwr_twin.results.record import RunResult
+
+
+def save_reclaim_figures(result: RunResult, out_dir: Path, subtitle: str) -> list[Path]:
+    """Write pile.png and reclaim.png into out_dir; returns their paths."""
+    return [_pile_figure(result, out_dir, subtitle), _rate_figure(result, out_dir, subtitle)]
+
+
+def _pile_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
+    pile = result.reclaim
+    extent = (pile.x[0], pile.x[-1], pile.y[0], pile.y[-1])
+    cut = pile.z_start - pile.z_end
+    fig = Figure(figsize=(12, 9), layout="constrained")
+    before, after, removed = fig.subplots(3, 1, sharex=True)
+    top = float(pile.z_start.max())
+    for ax, z, title in ((before, pile.z_start, "before"), (after, pile.z_end, "after")):
+        image = ax.imshow(z, origin="lower", extent=extent, cmap="terrain", vmin=0.0, vmax=top, aspect="equal")
+        ax.set_title(f"pile {title} [m above the yard floor]")
+        fig.colorbar(image, ax=ax, label="height [m]")
+    image = removed.imshow(np.where(cut > 0, cut, np.nan), origin="lower", extent=extent, cmap="magma_r", aspect="equal")
+    removed.set_title(f"cut [m]: {result.metrics['reclaim']['pile_volume_lost_m3']:.1f} m³ dug")
+    fig.colorbar(image, ax=removed, label="depth removed [m]")
+    cp = result.cp
+    for ax in (before, after, removed):
+        ax.plot(cp[:, 0], cp[:, 1], "C0-", lw=0.8, label="bucket wheel centre")
+        ax.set_ylabel("Y, beside the rail [m]")
+    before.legend(loc="upper right")
+    removed.set_xlabel("X, along the rail [m]")
+    fig.suptitle(f"The stockpile, dug\n{subtitle}")
+    path = out_dir / "pile.png"
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _rate_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
+    r, m = result.reclaim, result.metrics["reclaim"]
+    fig = Figure(figsize=(10, 9), layout="constrained")
+    rate, depth, power, force = fig.subplots(4, 1, sharex=True)
+    rate.plot(result.time, r.rate, "C0-", lw=0.8, label="reclaim rate")
+    rate.axhline(m["wheel_capacity_tph"], color="C3", ls="--", lw=1.0, label="bucket capacity")
+    rate.set_ylabel("rate [t/h]")
+    rate.set_title(f"{m['mass_t']:.0f} t reclaimed, {m['spill_t']:.1f} t spilled; "
+                   f"mean {m['rate_mean_tph']:.0f} t/h while carrying, CV {m['rate_cv']:.2f}")
+    rate.legend(loc="upper right")
+    depth.plot(result.time, r.cut_depth, "C1-", lw=0.8)
+    depth.set_ylabel("cut depth [m]")
+    power.plot(result.time, r.wheel_power / 1e3, "C2-", lw=0.8)
+    power.set_ylabel("wheel power [kW]")
+    for label, component, style in (("X", 0, "C0-"), ("Y", 1, "C1-"), ("Z", 2, "C2-")):
+        force.plot(result.time, r.digging_force[:, component] / 1e3, style, lw=0.8, label=label)
+    force.set_ylabel("digging load [kN]")
+    force.legend(loc="upper right")
+    force.set_xlabel("time [s]")
+    for ax in (rate, depth, power, force):
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"Reclaim rate, cut depth, wheel power and digging load on the wheel (world frame)\n{subtitle}")
+    path = out_dir / "reclaim.png"
+    fig.savefig(path, dpi=110)
+    return path

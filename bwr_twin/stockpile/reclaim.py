@@ -1,0 +1,209 @@
+"""The reclaim of every run of a lockstep: the cut each control period, what the buckets carry
+and spill, the digging load on the joints, and each run's totals and recorded signals.
+
+What the wheel digs goes into the bucket in the cut. Every bucket interval (60 s over the
+discharges a minute) that bucket discharges up to its volume onto the boom conveyor; the rest
+spills and is reported, not counted as reclaimed. The reclaim rate is the conveyor's load: each
+discharge spread over the next bucket interval, as a belt scale sees it. So the rate's integral
+is exactly what the buckets discharged, once the last discharge has passed.
+The digging load (when the scene has [digging]) acts where the material was cut, through the
+Jacobian of that point: the cutting force at the rim, P_cut / rim speed with P_cut =
+cutting_energy x dug volume a second (at most the wheel drive's rating less its idle power),
+lagged by one bucket interval, opposes the buckets' motion (they rise through the face),
+and a lateral share of it opposes the slewing into the face.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.model.machine import Machine
+from bwr_twin.stockpile.cutting import Cutter
+from bwr_twin.stockpile.placement import check_placement
+from bwr_twin.stockpile.surface import Surface
+
+SECONDS_PER_HOUR = 3600.0
+KG_PER_T = 1000.0
+
+
+@dataclass
+class ReclaimRecord:
+    """One run's reclaim signals at the record period, and its pile."""
+
+    rate: np.ndarray  # (n,) t/h carried away
+    cut_depth: np.ndarray  # (n,) m
+    digging_force: np.ndarray  # (n, 3) N on the wheel, world frame
+    wheel_power: np.ndarray  # (n,) W
+    x: np.ndarray  # grid lines, m
+    y: np.ndarray
+    z_start: np.ndarray  # (ny, nx) m
+    z_end: np.ndarray
+    frames: list[tuple[float, np.ndarray, np.ndarray]]  # (t s, flat cell indices, new heights m) as it was dug
+
+
+class Reclaim:
+    """Owns the piles of a lockstep's runs (through its Cutter) and their reclaim accounting."""
+
+    def __init__(self, scenes: Sequence[Scene], machine: Machine, surface: Surface, period: float,
+                 record_rows: int, frame_every: int | None = None):
+        """`surface`: the scenes' pile; `frame_every`: keep the cells changed every that many
+        control periods, for a replay. Raises SceneError if the machine cannot dig the pile."""
+        self.surface = surface
+        check_placement(surface, machine, scenes[0].path)
+        runs = len(scenes)
+        self.machine, self.wheel, self.period = machine, machine.wheel, period
+        self.cutter = Cutter(self.surface, machine.wheel, runs)
+        self.density = np.array([s.stockpile.bulk_density for s in scenes])  # kg/m^3
+        digging = [s.digging for s in scenes]
+        self.cutting_energy = np.array([d.cutting_energy if d else 0.0 for d in digging])
+        self.idle_power = np.array([d.idle_power if d else 0.0 for d in digging])
+        self.lateral_ratio = np.array([d.lateral_ratio if d else 0.0 for d in digging])
+        self.loaded = any(d is not None for d in digging)
+        # The bucket in the cut: what it holds (m^3), and when it discharges (s).
+        self.bucket_interval = 60.0 / self.wheel.discharges_per_minute
+        self.bucket = np.zeros(runs)
+        self._discharge_at = self.bucket_interval
+        self._belt = np.zeros(runs)  # m^3/s, the last discharge spread over the next interval
+        self._dug_rate = np.zeros(runs)  # m^3/s, lagged by a bucket interval
+        self._lag = period / (self.bucket_interval + period)
+        self._arm = np.zeros((runs, 2))  # the last cut's centre from the CP: along the boom, up (m)
+        self._side = np.zeros(runs)  # and the side of the wheel's plane it lay on
+        # This period's values, for the record.
+        self.rate, self.depth, self.power = np.zeros(runs), np.zeros(runs), np.zeros(runs)
+        self.force = np.zeros((runs, 3))
+        # Totals.
+        self.dug, self.carried, self.spilled = np.zeros(runs), np.zeros(runs), np.zeros(runs)  # m^3
+        self.conveyed = np.zeros(runs)  # m^3, the rate's integral
+        self.carrying_periods = np.zeros(runs, dtype=np.int64)
+        self.rate_sum, self.rate_square_sum = np.zeros(runs), np.zeros(runs)  # t/h, over carrying periods
+        self.rate_max, self.depth_max, self.force_max = np.zeros(runs), np.zeros(runs), np.zeros(runs)
+        self.recorded = {name: np.zeros((record_rows, runs)) for name in ("rate", "depth", "power")}
+        self.recorded["force"] = np.zeros((record_rows, runs, 3))
+        self._frame_every = frame_every
+        self._frames: list[list] = [[] for _ in range(runs)]
+        self._framed = self.cutter.heights.copy() if frame_every else None
+
+    def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray:
+        """Cut period k's material with the wheels where the true joint values q (runs, 3) put
+        them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period."""
+        cp = self.machine.fk(q)
+        cut = self.cutter.cut(cp, q[:, 1], runs)
+        self.dug += cut.volume
+        self.bucket += cut.volume
+        np.multiply(self._belt, self.density * (SECONDS_PER_HOUR / KG_PER_T), out=self.rate)
+        self.conveyed += self._belt * self.period
+        if (k + 1) * self.period >= self._discharge_at - 1e-9:  # the bucket discharges as the period ends
+            carried = self._discharge()
+            following = self._discharge_at + self.bucket_interval
+            periods = np.ceil(following / self.period - 1e-9) - (k + 1)  # the next interval, in periods
+            self._belt = carried / (periods * self.period)
+            self._discharge_at = following
+        self.depth[:] = cut.depth
+        carrying = self.rate > 0
+        self.carrying_periods += carrying
+        self.rate_sum += self.rate
+        self.rate_square_sum += self.rate**2
+        np.maximum(self.rate_max, self.rate, out=self.rate_max)
+        np.maximum(self.depth_max, cut.depth, out=self.depth_max)
+        if self._framed is not None and k % self._frame_every == 0:
+            self._keep_frame(k)
+        if not self.loaded:
+            return np.zeros_like(q)
+        # The buckets cut in chips, one a bucket interval: the load follows the dug rate (spill
+        # included: it was cut all the same) through a lag of one bucket interval.
+        self._dug_rate += (cut.volume / self.period - self._dug_rate) * self._lag
+        demand = self.cutting_energy * self._dug_rate + self.idle_power
+        np.minimum(demand, self.wheel.power, out=self.power)  # beyond its rating the wheel stalls
+        tangential = np.maximum(self.power - self.idle_power, 0.0) / self.wheel.rim_speed
+        cos, sin = np.cos(q[:, 1]), np.sin(q[:, 1])
+        self._remember_cut(cut, cp, cos, sin)
+        # Against the buckets' motion where they cut: the arm from the CP turned by +90 deg in
+        # the boom's vertical plane (up at the front, outwards at the bottom); and against the
+        # slewing into the face, along the wheel's axis (-sin, cos, 0).
+        along, up = self._arm[:, 0], self._arm[:, 1]
+        length = np.hypot(along, up)
+        scale = np.divide(tangential, length, out=np.zeros_like(length), where=length > 0)
+        lateral = self.lateral_ratio * tangential * self._side
+        force = self.force
+        force[:, 0] = scale * up * cos + lateral * sin
+        force[:, 1] = scale * up * sin - lateral * cos
+        force[:, 2] = -scale * along
+        np.maximum(self.force_max, np.sqrt(np.einsum("ri,ri->r", force, force)), out=self.force_max)
+        # It acts at the last cut's centre, carried with the boom.
+        point = cp.copy()
+        point[:, 0] += along * cos
+        point[:, 1] += along * sin
+        point[:, 2] += up
+        return self.machine.joint_force(q, point, force)
+
+    def _remember_cut(self, cut, cp: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> None:
+        """Keep where each cutting run cut, as (along the boom, up) from the CP, and its side."""
+        cutting = cut.volume > 0
+        if not cutting.any():
+            return
+        arm = cut.centroid - cp
+        self._arm[cutting, 0] = (arm[:, 0] * cos + arm[:, 1] * sin)[cutting]
+        self._arm[cutting, 1] = arm[cutting, 2]
+        self._side[cutting] = cut.side[cutting]
+
+    def _discharge(self) -> np.ndarray:
+        """Empty the bucket in the cut: up to its volume is carried, the rest spills; m^3 carried."""
+        carried = np.minimum(self.bucket, self.wheel.bucket_volume)
+        self.carried += carried
+        self.spilled += self.bucket - carried
+        self.bucket[:] = 0.0
+        return carried
+
+    def finish(self) -> None:
+        """At the end of the path, the bucket in the cut discharges."""
+        self._discharge()
+
+    def record(self, row: int) -> None:
+        self.recorded["rate"][row] = self.rate
+        self.recorded["depth"][row] = self.depth
+        self.recorded["power"][row] = self.power
+        self.recorded["force"][row] = self.force
+
+    def _keep_frame(self, k: int) -> None:
+        for run in range(len(self._frames)):
+            changed = np.flatnonzero(self.cutter.heights[run] != self._framed[run])
+            if changed.size:
+                heights = self.cutter.heights[run].ravel()[changed]
+                self._framed[run].ravel()[changed] = heights
+                self._frames[run].append((k * self.period, changed.astype(np.int32), heights.astype(np.float32)))
+
+    def metrics(self, run: int) -> dict:
+        """metrics.json's `reclaim` object for `run` (output contract)."""
+        tonnes = self.density[run] / KG_PER_T  # per m^3
+        periods = max(int(self.carrying_periods[run]), 1)
+        mean = self.rate_sum[run] / periods
+        variance = max(self.rate_square_sum[run] / periods - mean**2, 0.0)
+        return {
+            "mass_t": self.carried[run] * tonnes,
+            "volume_m3": float(self.carried[run]),
+            "rate_mean_tph": mean,
+            "rate_cv": float(np.sqrt(variance) / mean) if mean > 0 else 0.0,
+            "spill_t": self.spilled[run] * tonnes,
+            "rate_max_tph": float(self.rate_max[run]),
+            "carrying_time_s": int(self.carrying_periods[run]) * self.period,
+            "conveyed_t": self.conveyed[run] * tonnes,
+            "dug_m3": float(self.dug[run]),
+            "pile_volume_lost_m3": self.surface.volume() - self.surface.volume(self.cutter.heights[run]),
+            "cut_depth_max_m": float(self.depth_max[run]),
+            "digging_force_max_N": float(self.force_max[run]),
+            "wheel_capacity_tph": self.wheel.capacity * self.density[run] * SECONDS_PER_HOUR / KG_PER_T,
+        }
+
+    def run_record(self, run: int) -> ReclaimRecord:
+        return ReclaimRecord(
+            rate=self.recorded["rate"][:, run].copy(),
+            cut_depth=self.recorded["depth"][:, run].copy(),
+            digging_force=self.recorded["force"][:, run].copy(),
+            wheel_power=self.recorded["power"][:, run].copy(),
+            x=self.surface.x, y=self.surface.y, z_start=self.surface.z,
+            z_end=self.cutter.heights[run].copy(), frames=self._frames[run],
+        )

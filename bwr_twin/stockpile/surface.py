@@ -1,0 +1,172 @@
+"""A stockpile's surface as heights on a regular grid, built from a scene's [stockpile].
+
+A windrow is built from its crest, height and angle of repose; a surveyed surface is read from
+a height grid (.npz) or from x, y, z points (.csv) and gridded on load. Heights are metres above
+the yard floor (world Z = 0); the ground around the pile is at 0.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator, griddata
+
+from bwr_twin.config.scene import StockpileSection, WindrowSection
+from bwr_twin.errors import SceneError
+
+MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    """Heights z[iy, ix] (m) at the grid lines x[ix], y[iy] (m), spaced evenly."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+
+    @property
+    def spacing(self) -> float:
+        return float(self.x[1] - self.x[0])
+
+    @property
+    def cell_area(self) -> float:
+        """m^2 each height sample stands for."""
+        return self.spacing**2
+
+    def volume(self, z: np.ndarray | None = None) -> float:
+        """m^3 of material above the floor, for these heights or for `z` on the same grid."""
+        return float(np.sum(self.z if z is None else z) * self.cell_area)
+
+    def height_at(self, x: float, y: float) -> float:
+        """The height (m) of the grid sample nearest to world (x, y), 0 off the grid."""
+        ix = int(round((x - self.x[0]) / self.spacing))
+        iy = int(round((y - self.y[0]) / self.spacing))
+        if 0 <= ix < len(self.x) and 0 <= iy < len(self.y):
+            return float(self.z[iy, ix])
+        return 0.0
+
+
+def build_surface(section: StockpileSection, scene_path: Path) -> Surface:
+    """The surface a scene's [stockpile] describes. Raises SceneError naming the file and key."""
+    if section.windrow is not None:
+        return windrow(section.windrow, section.grid_spacing, scene_path)
+    return surveyed(section.surface_file, section.grid_spacing, scene_path)
+
+
+def _grid_lines(low: float, high: float, spacing: float) -> np.ndarray:
+    """Grid lines from `low` to at least `high`, one spare line of ground on each side."""
+    count = int(np.ceil((high - low) / spacing)) + 3
+    return low - spacing + np.arange(count) * spacing
+
+
+def _check_size(nx: int, ny: int, scene_path: Path) -> None:
+    if nx * ny > MAX_CELLS:
+        raise SceneError(
+            f"{scene_path}: 'stockpile.grid_spacing' gives {nx} x {ny} = {nx * ny:.3g} height samples, "
+            f"more than {MAX_CELLS:.0e}: choose a coarser grid"
+        )
+
+
+def windrow(w: WindrowSection, spacing: float, scene_path: Path) -> Surface:
+    """A windrow: z = height - tan(repose) x (distance outside the crest rectangle along X or Y,
+    whichever is larger), at least 0: planar flanks, hipped ends."""
+    slope = np.tan(np.radians(w.angle_of_repose))
+    spread = w.height / slope  # horizontal run of a flank
+    half_x, half_y = w.length / 2, w.crest_width / 2
+    cx, cy = w.centre
+    nx = int(np.ceil((w.length + 2 * spread) / spacing)) + 3
+    ny = int(np.ceil((w.crest_width + 2 * spread) / spacing)) + 3
+    _check_size(nx, ny, scene_path)
+    x = _grid_lines(cx - half_x - spread, cx + half_x + spread, spacing)
+    y = _grid_lines(cy - half_y - spread, cy + half_y + spread, spacing)
+    outside_x = np.maximum(np.abs(x - cx) - half_x, 0.0)
+    outside_y = np.maximum(np.abs(y - cy) - half_y, 0.0)
+    z = np.clip(w.height - slope * np.maximum(outside_x[None, :], outside_y[:, None]), 0.0, None)
+    return Surface(x, y, z)
+
+
+def surveyed(file: Path, spacing: float, scene_path: Path) -> Surface:
+    """A surveyed surface, regridded at `spacing` (bilinear from a grid, linear between points)."""
+    return _surveyed(Path(file), spacing, scene_path, file.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=4)
+def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surface:
+    where = f"{scene_path}: 'stockpile.surface_file' {file}"
+    if file.suffix == ".npz":
+        xs, ys, zs = _read_npz(file, where)
+    elif file.suffix == ".csv":
+        xs, ys, zs = _read_points(file, where)
+    else:
+        raise SceneError(f"{where}: must be a .npz height grid or a .csv of x,y,z points")
+    nx = int(np.ceil((xs.max() - xs.min()) / spacing)) + 3
+    ny = int(np.ceil((ys.max() - ys.min()) / spacing)) + 3
+    _check_size(nx, ny, scene_path)
+    x = _grid_lines(xs.min(), xs.max(), spacing)
+    y = _grid_lines(ys.min(), ys.max(), spacing)
+    gx, gy = np.meshgrid(x, y)
+    if zs.ndim == 2:
+        interpolate = RegularGridInterpolator((ys, xs), zs, bounds_error=False, fill_value=0.0)
+        z = interpolate(np.stack([gy, gx], axis=-1))
+    else:
+        z = griddata(np.column_stack([xs, ys]), zs, (gx, gy), method="linear", fill_value=0.0)
+    return Surface(x, y, np.clip(z, 0.0, None))
+
+
+def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        with np.load(file, allow_pickle=False) as data:
+            missing = [key for key in ("x", "y", "z") if key not in data]
+            if missing:
+                raise SceneError(f"{where}: has no array '{missing[0]}' (x, y: grid lines in m; z: heights in m)")
+            x, y, z = (np.asarray(data[key], dtype=float) for key in ("x", "y", "z"))
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"{where}: not a readable .npz file ({exc})") from None
+    if x.ndim != 1 or y.ndim != 1 or z.shape != (len(y), len(x)) or len(x) < 2 or len(y) < 2:
+        raise SceneError(f"{where}: z must be a (len(y), len(x)) grid of at least 2 x 2, got z {z.shape}, "
+                         f"x {x.shape}, y {y.shape}")
+    if not (np.all(np.diff(x) > 0) and np.all(np.diff(y) > 0)):
+        raise SceneError(f"{where}: x and y must increase")
+    _check_finite(where, x, y, z)
+    return x, y, z
+
+
+def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        text = file.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{where}: cannot read it ({exc})") from None
+    rows = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    if rows and not _is_number(rows[0].split(",")[0]):
+        rows = rows[1:]  # a header line
+    points = []
+    for number, line in enumerate(rows, start=1):
+        cells = line.split(",")
+        if len(cells) != 3 or not all(_is_number(c) for c in cells):
+            raise SceneError(f"{where}: data row {number} must be three numbers x,y,z (m), got {line.strip()!r}")
+        points.append([float(c) for c in cells])
+    if len(points) < 3:
+        raise SceneError(f"{where}: needs at least 3 points, got {len(points)}")
+    xs, ys, zs = np.array(points).T
+    _check_finite(where, xs, ys, zs)
+    if np.ptp(xs) == 0 or np.ptp(ys) == 0:
+        raise SceneError(f"{where}: the points lie on a line: they span no area")
+    return xs, ys, zs
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _check_finite(where: str, *arrays: np.ndarray) -> None:
+    for name, array in zip("xyz", arrays):
+        if not np.all(np.isfinite(array)):
+            raise SceneError(f"{where}: {name} holds a value that is not a finite number")
