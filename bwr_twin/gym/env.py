@@ -38,6 +38,12 @@ class ReclaimEnv(gymnasium.Env):
         reward_weights: (3,) travel, slew, luff weights of the reward.
         overrides: scene keys to replace, as `load_scene` takes them (not `simulation.seed`,
             which each episode's seed sets).
+
+    Attributes:
+        scales: the observation's scales (`bwr_twin.gym.scales.Scales`), to read observations in SI.
+        drive: how actions become forces: `drive.scale` (3,) m/s^2, rad/s^2 in acceleration
+            mode; `drive.low`, `drive.high` (3,) N, N m in force mode.
+        control_period: s, one step.
     """
 
     metadata = {"render_modes": []}
@@ -51,6 +57,8 @@ class ReclaimEnv(gymnasium.Env):
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
                                  reward_weights=reward_weights, overrides=overrides, nthread=1)
         self.scales = self.episodes.scales
+        self.drive = self.episodes.drive
+        self.control_period = self.episodes.period
         self.observation_space = observation_space()
         self.action_space = action_space()
 

@@ -63,6 +63,7 @@ class Episodes:
 
     Attributes:
         scales: the observation's scales (`bwr_twin.gym.scales`).
+        period: s, the scene's control period: one step.
         observation: (count, 19) float32, each slot's latest observation.
         error: (count, 3) each slot's true position error at that observation (m, rad).
         elapsed: (count,) s since the path's start at that observation.
@@ -84,6 +85,7 @@ class Episodes:
         # A lockstep of the scene as written: its machine and path set the scales and the drive.
         first = Lockstep([load_scene(self.scene, self.overrides)], nthread=1)
         self.scales = Scales.of(first, error_scale)
+        self.period = first.period
         self.envelope = first.machine.envelope
         self.drive = make_drive(action_mode, first, count, force_scale=force_scale,
                                 acceleration_scale=acceleration_scale, nthread=nthread)
@@ -96,6 +98,11 @@ class Episodes:
         self._groups: list[Group] = []
         self._group_of: list[Group | None] = [None] * count
         self._running = np.zeros(count, dtype=bool)
+
+    @property
+    def locksteps(self) -> list[Lockstep]:
+        """The locksteps that hold a running episode."""
+        return [group.loop for group in self._groups]
 
     def running(self) -> np.ndarray:
         """(count,) bool: the slots whose episode goes on."""

@@ -50,6 +50,8 @@ class ReclaimVectorEnv(VectorEnv):
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
                                  reward_weights=reward_weights, overrides=overrides, nthread=nthread)
         self.scales = self.episodes.scales
+        self.drive = self.episodes.drive
+        self.control_period = self.episodes.period
         self.single_observation_space = observation_space()
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
