@@ -147,13 +147,17 @@ class Episodes:
             failed = np.isin(runs, list(loop.plant.failures)) | ~np.isfinite(q).all(axis=1)
         outside = (q < self.envelope[:, 0]) | (q > self.envelope[:, 1])
         error = loop.q_desired[min(loop.k, loop.samples - 1)] - q
-        error[failed] = self.error[slots[failed]]  # a diverged state has no error: keep the last
+        ending = failed.any() or outside.any() or loop.done
+        if ending:
+            error[failed] = self.error[slots[failed]]  # a diverged state has no error: keep the last
         outcome.reward[slots] = tracking_reward(error, self.scales.error, self.weights)
         self.error[slots] = error
+        self._observe(group, runs[~failed] if ending else runs)
+        if not ending:
+            return
         terminated = np.full(len(runs), loop.done) & ~failed
         truncated = (failed | outside.any(axis=1)) & ~terminated
         outcome.terminated[slots], outcome.truncated[slots] = terminated, truncated
-        self._observe(group, runs[~failed])
         for i in np.flatnonzero(terminated | truncated):
             run, slot = int(runs[i]), int(slots[i])
             if failed[i]:
