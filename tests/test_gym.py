@@ -9,17 +9,17 @@ import warnings
 import gymnasium
 import numpy as np
 import pytest
+from conftest import ROOT, write_short_scene
 from gymnasium.utils.env_checker import check_env
 
 import bwr_twin.gym  # noqa: F401  (registers the id)
 from bwr_twin.errors import ModelError, SceneError
 from bwr_twin.gym import ENV_ID
 from bwr_twin.gym.scales import REFERENCE_ACCELERATION, REFERENCE_POSITION, REFERENCE_VELOCITY
-from tests.conftest import ROOT, write_short_scene
 
-# A 2 s reclaim (201 control periods): 30 cm along the rail, 10 cm down.
+# A 2 s reclaim (201 control periods), 30 cm along the rail.
 TINY_VIA_POINTS = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 2.0, "p": [0.0, -11.0, 54.7]}]
-# Full force pushes the paper machine's 6.3e5 kg-class carriage out of +-25 m within a second.
+# Full force (10 MN on travel) drives the paper machine out of its +-25 m of travel within a second.
 PUSH = dict(action_mode="force", force_scale=(1e7, 1e8, 1e8))
 
 

@@ -8,6 +8,7 @@ with zero actions (computed-torque feed-forward: the machine stays on the path, 
 ends). Keeps the best of `--repeat` of each (the machine is shared and noisy) and prints
 environment steps per second for each, the vector-to-single ratio, the time of a reset, and the
 single environment's floor: its lockstep of one alone, measured and advanced at zero force.
+The timings alternate, so that a burst of load on the shared machine hits each figure alike.
 """
 
 from __future__ import annotations
@@ -27,46 +28,38 @@ from bwr_twin.gym import ENV_ID
 from bwr_twin.sim.lockstep import Lockstep
 
 
-def steps_per_second(env, actions: np.ndarray, steps: int, repeat: int) -> float:
-    """Best of `repeat` timings of `steps` steps from a fresh reset, in environment steps per second."""
-    best = np.inf
-    for r in range(repeat):
-        env.reset(seed=r)
-        start = time.perf_counter()
-        for _ in range(steps):
-            env.step(actions)
-        best = min(best, time.perf_counter() - start)
-    return steps * (len(actions) if actions.ndim == 2 else 1) / best
+def time_steps(env, actions: np.ndarray, steps: int, seed: int) -> float:
+    """Wall time of `steps` steps from a reset with `seed`, s."""
+    env.reset(seed=seed)
+    start = time.perf_counter()
+    for _ in range(steps):
+        env.step(actions)
+    return time.perf_counter() - start
 
 
-def lockstep_steps_per_second(scene, steps: int, repeat: int) -> float:
-    """Best of `repeat` timings of a lockstep of one, measured and advanced at zero force, in periods per second."""
-    best, command = np.inf, np.zeros((1, 3))
-    for _ in range(repeat):
-        loop = Lockstep([scene], nthread=1)
-        start = time.perf_counter()
-        for _ in range(min(steps, loop.samples)):
-            loop.measure()
-            loop.advance(command)
-        best = min(best, time.perf_counter() - start)
-    return min(steps, loop.samples) / best
+def time_lockstep(scene, steps: int) -> float:
+    """Wall time of `steps` periods of a lockstep of one, measured and advanced at zero force, s."""
+    loop, command = Lockstep([scene], nthread=1), np.zeros((1, 3))
+    start = time.perf_counter()
+    for _ in range(steps):
+        loop.measure()
+        loop.advance(command)
+    return time.perf_counter() - start
 
 
-def reset_seconds(env, repeat: int) -> float:
-    """Best time of one seeded reset, s."""
-    best = np.inf
-    for seed in range(repeat):
-        start = time.perf_counter()
-        env.reset(seed=seed)
-        best = min(best, time.perf_counter() - start)
-    return best
+def time_reset(env, seed: int) -> float:
+    """Wall time of one seeded reset, s."""
+    start = time.perf_counter()
+    env.reset(seed=seed)
+    return time.perf_counter() - start
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", nargs="?", default="paper_individual_gains", help="scene file or shipped scene name")
     parser.add_argument("--envs", type=int, default=16, help="sub-environments of the vector environment (default 16)")
-    parser.add_argument("--steps", type=int, default=2000, help="steps per timing (default 2000: 20 s of path)")
+    parser.add_argument("--steps", type=int, default=2000,
+                        help="steps per timing, at most the path's periods (default 2000: 20 s of path)")
     parser.add_argument("--threads", type=int, default=0, help="MuJoCo threads of the vector env (0: all cores)")
     parser.add_argument("--repeat", type=int, default=3, help="timings of each, the best kept (default 3)")
     args = parser.parse_args(argv)
@@ -79,17 +72,29 @@ def main(argv: list[str] | None = None) -> int:
 def _bench(args: argparse.Namespace) -> int:
     single = gymnasium.make(ENV_ID, scene=args.scene).unwrapped
     vector = gymnasium.make_vec(ENV_ID, num_envs=args.envs, scene=args.scene, nthread=args.threads)
+    scene = load_scene(single.episodes.scene)
+    samples = round(single.scales.duration / single.control_period) + 1
+    if args.steps > samples:
+        print(f"error: --steps {args.steps} is more than the path's {samples} control periods", file=sys.stderr)
+        return 2
     print(f"scene {args.scene}, {args.steps} steps of {single.control_period} s, best of {args.repeat}, "
           f"{os.cpu_count()} cores")
-    single_rate = steps_per_second(single, np.zeros(3, dtype=np.float32), args.steps, args.repeat)
-    vector_rate = steps_per_second(vector, np.zeros((args.envs, 3), dtype=np.float32), args.steps, args.repeat)
+    # Interleaved, so that a burst of load on the shared machine hits every figure alike.
+    best = {"single": np.inf, "vector": np.inf, "lockstep": np.inf, "reset": np.inf, "vector reset": np.inf}
+    for r in range(args.repeat):
+        best["single"] = min(best["single"], time_steps(single, np.zeros(3, dtype=np.float32), args.steps, r))
+        best["vector"] = min(best["vector"], time_steps(vector, np.zeros((args.envs, 3), dtype=np.float32),
+                                                        args.steps, r))
+        best["lockstep"] = min(best["lockstep"], time_lockstep(scene, args.steps))
+        best["reset"] = min(best["reset"], time_reset(single, r))
+        best["vector reset"] = min(best["vector reset"], time_reset(vector, r))
+    single_rate, vector_rate = args.steps / best["single"], args.steps * args.envs / best["vector"]
+    floor = args.steps / best["lockstep"]
     print(f"single env: {single_rate:,.0f} env steps/s")
     print(f"vector env ({args.envs} envs, one lockstep): {vector_rate:,.0f} env steps/s")
     print(f"vector / single: {vector_rate / single_rate:.2f}")
-    floor = lockstep_steps_per_second(load_scene(single.episodes.scene), args.steps, args.repeat)
     print(f"lockstep of one alone: {floor:,.0f} periods/s (the single env reaches {single_rate / floor:.0%} of it)")
-    print(f"reset: single {reset_seconds(single, args.repeat) * 1e3:.1f} ms, "
-          f"vector {reset_seconds(vector, args.repeat) * 1e3:.1f} ms")
+    print(f"reset: single {best['reset'] * 1e3:.1f} ms, vector of {args.envs} {best['vector reset'] * 1e3:.1f} ms")
     return 0
 
 

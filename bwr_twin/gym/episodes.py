@@ -137,6 +137,7 @@ class Episodes:
         return outcome
 
     def _advance(self, group: Group, forces: np.ndarray, outcome: Outcome) -> None:
+        """Advance one lockstep a period under the (count, 3) forces; its slots' share of `outcome`."""
         loop, runs, slots = group.loop, group.runs, group.live_slots
         command = np.zeros((loop.runs, 3))  # runs left behind get no force
         command[runs] = forces[slots]
