@@ -91,12 +91,14 @@ def test_leaving_the_envelope_truncates(tiny):
     assert observation in env.observation_space and reward < 0
 
 
-def test_a_diverged_run_ends_the_episode_cleanly(tiny):
+def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny, tmp_path, monkeypatch, capfd):
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
     env = gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force", force_scale=(1e300, 1e300, 1e300)).unwrapped
     env.reset(seed=1)
     observation, reward, terminated, truncated, info = env.step(np.ones(3, dtype=np.float32))
     assert truncated and not terminated and info["ended"].startswith("diverged: MuJoCo")
     assert observation in env.observation_space and np.isfinite(reward)
+    assert capfd.readouterr() == ("", "") and not list(tmp_path.iterdir())
 
 
 def test_force_mode_needs_drive_ratings_or_a_scale(tiny):
@@ -112,6 +114,7 @@ def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
     n, seed, periods = 3, 20, 150
     actions = np.random.default_rng(1).uniform(-1, 1, (periods, n, 3)).astype(np.float32)
     actions[:, 0] = (1, 0, 0)  # sub-environment 0 leaves the envelope again and again
+    actions[5, 1] = np.nan  # and sub-environment 1 diverges, alone in its lockstep
     envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny), **PUSH)
     assert isinstance(envs.unwrapped, bwr_twin.gym.ReclaimVectorEnv)
     observations, _ = envs.reset(seed=seed)
@@ -119,7 +122,8 @@ def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
     assert loop.runs == n
     vector = [envs.step(a) for a in actions]
     assert len(envs.unwrapped.episodes.locksteps) > 1  # restarted episodes run in locksteps of their own
-    ends = 0
+    ends, reasons = 0, {why for _, _, _, _, infos in vector if "ended" in infos for why in infos["ended"] if why}
+    assert any(why.startswith("diverged") for why in reasons) and any(why.startswith("left") for why in reasons)
     for i in range(n):
         env = gymnasium.make(ENV_ID, scene=str(tiny), **PUSH).unwrapped
         observation, _ = env.reset(seed=seed + i)
