@@ -15,9 +15,11 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 @dataclass(frozen=True)
 class EpisodeSummary:
-    """Attributes:
+    """What one episode came to.
+
+    Attributes:
         episode_return: the sum of the rewards.
-        steps: control periods stepped; `simulated` s of path they cover.
+        steps: control periods stepped; simulated: s of path they cover.
         max_position_error: (3,) largest |reference - true joint| per axis (m, rad).
         ended: why the episode ended ("path end", ...), or "time limit" for a TimeLimit wrapper.
     """

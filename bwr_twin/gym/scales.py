@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bwr_twin.model.machine import Machine
+from bwr_twin.errors import ModelError
+from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.sim.lockstep import Lockstep
 
 OBSERVATION_SIZE = 19
@@ -70,8 +71,15 @@ class Scales:
 
     @classmethod
     def of(cls, loop: Lockstep, error_scale: float) -> Scales:
-        """The scales of a lockstep's machine and path; `error_scale` in m at the CP."""
+        """The scales of a lockstep's machine and path; `error_scale` in m at the CP. Raises
+        ModelError if the machine's operating envelope is not finite on every axis."""
         envelope = loop.machine.envelope
+        open_axes = [axis for axis, row in zip(AXES, envelope) if not np.isfinite(row).all()]
+        if open_axes:
+            raise ModelError(
+                f"{loop.machine.path}: the environment scales positions by the operating envelope, and "
+                f"{', '.join(open_axes)} have none: give custom numerics envelope_<axis> or joint ranges"
+            )
         half_width = (envelope[:, 1] - envelope[:, 0]) / 2
         duration = loop.trajectory.duration
         velocity = np.maximum(2 * np.abs(loop.qd_desired).max(axis=0), half_width / duration)
