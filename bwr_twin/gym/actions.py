@@ -1,0 +1,91 @@
+"""Actions in [-1, 1]^3 to drive forces (N, N m, N m), in one of two modes.
+
+- "force": the drive force itself, normalised by the drive ratings of the plant's MJCF: +1 is
+  the upper rating, -1 the lower one, 0 no force. The paper's machine (`mjcf/bwr.xml`) has no
+  ratings; there `force_scale` (N, N m, N m) must be given, and +-1 is +-force_scale.
+- "acceleration": an acceleration added to the reference's, through the controller's belief of
+  the machine (`bwr_twin.control.belief`) at the measured state:
+
+      tau = M(q_hat) (qdd_ref + a * acceleration_scale) + bias(q_hat, qd_hat)
+
+  so a = 0 is computed-torque feed-forward. `acceleration_scale` is a CP acceleration (m/s^2):
+  itself on travel, divided by the boom length on slew and luff (rad/s^2).
+
+Actions outside [-1, 1] are clipped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bwr_twin.control.belief import Belief
+from bwr_twin.errors import ModelError
+from bwr_twin.gym.scales import at_cp
+from bwr_twin.model.machine import AXES
+from bwr_twin.sim.lockstep import Lockstep
+
+ACTION_MODES = ("acceleration", "force")
+DEFAULT_ACCELERATION_SCALE = 0.1  # m/s^2 at the CP: 13 x the paper path's peak reference (7.5e-3 m/s^2, travel)
+
+
+class ForceDrive:
+    """+-1 is the drive rating (or +-force_scale) of each axis."""
+
+    def __init__(self, loop: Lockstep, force_scale: Sequence[float] | None):
+        if force_scale is not None:
+            scale = _positive("force_scale", force_scale, 3)
+            self.low, self.high = scale, scale
+            return
+        limits = loop.machine.drive_limits
+        unrated = [axis for axis, row in zip(AXES, limits) if not np.isfinite(row).all()]
+        if unrated:
+            raise ModelError(
+                f"{loop.machine.path}: action_mode 'force' needs drive ratings (actuator forcerange or "
+                f"ctrlrange), and {', '.join(unrated)} have none: pass force_scale=(N, N m, N m)"
+            )
+        self.low, self.high = -limits[:, 0], limits[:, 1]
+
+    def forces(self, action: np.ndarray, slots: np.ndarray, q: np.ndarray, qd: np.ndarray,
+               qdd_ref: np.ndarray) -> np.ndarray:
+        """(len(slots), 3) forces of the (len(slots), 3) actions; the states are not needed."""
+        return np.where(action >= 0, action * self.high, action * self.low)
+
+
+class AccelerationDrive:
+    """tau = M(q_hat) (qdd_ref + a * scale) + bias(q_hat, qd_hat), from the controller's belief."""
+
+    def __init__(self, loop: Lockstep, slots: int, acceleration_scale: float, nthread: int):
+        (scale,) = _positive("acceleration_scale", [acceleration_scale], 1)
+        self.scale = at_cp(scale, loop.machine)
+        # One belief for every environment slot, reused across episodes: it holds no state.
+        self.belief = Belief(loop.belief_machine, slots, nthread=nthread)
+
+    def forces(self, action: np.ndarray, slots: np.ndarray, q: np.ndarray, qd: np.ndarray,
+               qdd_ref: np.ndarray) -> np.ndarray:
+        """(len(slots), 3) forces; `q`, `qd` the measured (all slots, 3) state, `qdd_ref` the
+        (len(slots), 3) reference acceleration of `slots`."""
+        u = qdd_ref + action * self.scale
+        self.belief.update(q, qd, None if len(slots) == len(q) else slots)
+        mass, bias = self.belief.mass_matrix[slots], self.belief.bias[slots]
+        # M u row by row, summed in a fixed order, as computed_torque does.
+        return (mass * u[:, None, :]).sum(axis=2) + bias
+
+
+def make_drive(mode: str, loop: Lockstep, slots: int, *, force_scale: Sequence[float] | None,
+               acceleration_scale: float, nthread: int) -> ForceDrive | AccelerationDrive:
+    """The drive of `mode` for `slots` environment slots of the lockstep's scene."""
+    if mode == "force":
+        return ForceDrive(loop, force_scale)
+    if mode == "acceleration":
+        return AccelerationDrive(loop, slots, acceleration_scale, nthread)
+    raise ValueError(f"action_mode must be one of {', '.join(ACTION_MODES)}, got {mode!r}")
+
+
+def _positive(name: str, values: Sequence[float], size: int) -> np.ndarray:
+    """`values` as a (size,) array; ValueError unless they are `size` finite numbers > 0."""
+    array = np.asarray(values, dtype=float)
+    if array.shape != (size,) or not (np.isfinite(array) & (array > 0)).all():
+        raise ValueError(f"{name} must be {size} finite number(s) > 0, got {values!r}")
+    return array

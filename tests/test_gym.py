@@ -1,0 +1,155 @@
+"""The Gymnasium environment: the checker, seeding, episode ends, force-mode limits, the vector
+environment against single ones, and the example scripts."""
+
+import re
+import subprocess
+import sys
+import warnings
+
+import gymnasium
+import numpy as np
+import pytest
+from conftest import ROOT, write_short_scene
+from gymnasium.utils.env_checker import check_env
+
+import bwr_twin.gym  # noqa: F401  (registers the id)
+from bwr_twin.errors import ModelError, SceneError
+from bwr_twin.gym import ENV_ID
+from bwr_twin.gym.scales import REFERENCE_ACCELERATION, REFERENCE_POSITION, REFERENCE_VELOCITY
+
+# A 2 s reclaim (201 control periods), 30 cm along the rail.
+TINY_VIA_POINTS = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 2.0, "p": [0.0, -11.0, 54.7]}]
+# Full force (10 MN on travel) drives the paper machine out of its +-25 m of travel within a second.
+PUSH = dict(action_mode="force", force_scale=(1e7, 1e8, 1e8))
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    return write_short_scene(tmp_path_factory.mktemp("gym"), TINY_VIA_POINTS)
+
+
+def steps(env, actions):
+    """Observations, rewards and flags of `actions` from the env's current state."""
+    out = [env.step(a) for a in actions]
+    return [o[0] for o in out], [o[1] for o in out], [(o[2], o[3]) for o in out]
+
+
+def test_checker_passes_without_warnings(tiny):
+    env = gymnasium.make(ENV_ID, scene=str(tiny))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped)
+
+
+def test_same_seed_and_actions_give_the_same_episode(tiny):
+    env = gymnasium.make(ENV_ID, scene=str(tiny)).unwrapped
+    actions = np.random.default_rng(0).uniform(-1, 1, (100, 3)).astype(np.float32)
+    first, _ = env.reset(seed=7)
+    run_1 = steps(env, actions)
+    again, _ = env.reset(seed=7)
+    run_2 = steps(env, actions)
+    assert np.array_equal(first, again) and np.array_equal(run_1[0], run_2[0]) and run_1[1] == run_2[1]
+    env.reset(seed=8)  # another seed: other disturbances, other velocities
+    assert not np.array_equal(steps(env, actions)[0], run_1[0])
+    # An unseeded reset draws the next scene seed from the seeded generator: reproducible too.
+    seeds = []
+    for _ in range(2):
+        env.reset(seed=7)
+        seeds.append(env.reset()[1]["seed"])
+    assert seeds[0] == seeds[1] != 7
+
+
+def test_the_path_end_terminates(tiny):
+    env = gymnasium.make(ENV_ID, scene=str(tiny)).unwrapped
+    observation, info = env.reset(seed=1)
+    samples = round(2.0 / env.control_period) + 1
+    observations = [observation]
+    for k in range(samples):
+        observation, reward, terminated, truncated, info = env.step(np.zeros(3, dtype=np.float32))
+        observations.append(observation)
+        assert terminated == (k == samples - 1) and not truncated
+    assert info["ended"] == "path end" and info["time"] == pytest.approx(2.0 + env.control_period)
+    # Feed-forward alone tracks within a centimetre; the reference stays within half its scale.
+    assert np.abs(info["position_error"]).max() < 0.01
+    observations = np.array(observations)
+    assert np.abs(observations[:, REFERENCE_POSITION]).max() <= 1.0
+    assert np.abs(observations[:, REFERENCE_VELOCITY]).max() <= 0.5 + 1e-6
+    assert np.abs(observations[:, REFERENCE_ACCELERATION]).max() <= 0.5 + 1e-6
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(3, dtype=np.float32))
+
+
+def test_leaving_the_envelope_truncates(tiny):
+    env = gymnasium.make(ENV_ID, scene=str(tiny), **PUSH).unwrapped
+    env.reset(seed=1)
+    for k in range(200):
+        observation, reward, terminated, truncated, info = env.step(np.array([1, 0, 0], dtype=np.float32))
+        if terminated or truncated:
+            break
+    assert truncated and not terminated and k < 100
+    assert re.fullmatch(r"left the operating envelope: travel = 2\d\.\d{3} m", info["ended"])
+    assert observation in env.observation_space and reward < 0
+
+
+def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny, tmp_path, monkeypatch, capfd):
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
+    env = gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force", force_scale=(1e300, 1e300, 1e300)).unwrapped
+    env.reset(seed=1)
+    observation, reward, terminated, truncated, info = env.step(np.ones(3, dtype=np.float32))
+    assert truncated and not terminated and info["ended"].startswith("diverged: MuJoCo")
+    assert observation in env.observation_space and np.isfinite(reward)
+    assert capfd.readouterr() == ("", "") and not list(tmp_path.iterdir())
+
+
+def test_force_mode_needs_drive_ratings_or_a_scale(tiny):
+    with pytest.raises(ModelError, match=r"bwr\.xml: action_mode 'force' needs drive ratings.*force_scale"):
+        gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force")
+    heavy = gymnasium.make(ENV_ID, scene="heavy_reclaim", action_mode="force").unwrapped
+    assert heavy.drive.high.tolist() == [5.4e5, 1.13e7, 3.05e7] and heavy.drive.low.tolist() == [5.4e5, 1.13e7, 1.55e7]
+    with pytest.raises(SceneError, match="no_such_scene"):
+        gymnasium.make(ENV_ID, scene="no_such_scene")
+
+
+def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
+    n, seed, periods = 3, 20, 150
+    actions = np.random.default_rng(1).uniform(-1, 1, (periods, n, 3)).astype(np.float32)
+    actions[:, 0] = (1, 0, 0)  # sub-environment 0 leaves the envelope again and again
+    actions[5, 1] = np.nan  # and sub-environment 1 diverges, alone in its lockstep
+    envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny), **PUSH)
+    assert isinstance(envs.unwrapped, bwr_twin.gym.ReclaimVectorEnv)
+    observations, _ = envs.reset(seed=seed)
+    (loop,) = envs.unwrapped.episodes.locksteps
+    assert loop.runs == n
+    vector = [envs.step(a) for a in actions]
+    assert len(envs.unwrapped.episodes.locksteps) > 1  # restarted episodes run in locksteps of their own
+    ends, reasons = 0, {why for _, _, _, _, infos in vector if "ended" in infos for why in infos["ended"] if why}
+    assert any(why.startswith("diverged") for why in reasons) and any(why.startswith("left") for why in reasons)
+    for i in range(n):
+        env = gymnasium.make(ENV_ID, scene=str(tiny), **PUSH).unwrapped
+        observation, _ = env.reset(seed=seed + i)
+        assert np.array_equal(observation, observations[i])
+        ended = False
+        for t, (obs, reward, terminated, truncated, _) in enumerate(vector):
+            if ended:  # next-step autoreset: the vector env starts the next episode, as reset() does
+                expected = (env.reset()[0], 0.0, False, False)
+            else:
+                expected = env.step(actions[t, i])[:4]
+            assert np.array_equal(obs[i], expected[0]), (i, t)
+            assert (reward[i], terminated[i], truncated[i]) == expected[1:], (i, t)
+            ended = expected[2] or expected[3]
+            ends += ended
+    assert ends >= 3
+
+
+@pytest.mark.parametrize("script", ["gym_pd.py", "gym_random.py"])
+def test_example_prints_return_and_errors(script):
+    done = subprocess.run([sys.executable, f"examples/{script}", "--seed", "3", "--duration", "2"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0].startswith("episode return: -") and "over 200 steps (2.00 s)" in lines[0]
+    assert lines[1].startswith("max position error: travel ") and " m, slew " in lines[1] and lines[1].endswith(" deg")
+    bad = subprocess.run([sys.executable, f"examples/{script}", "--scene", "no_such_scene"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and bad.stderr.startswith("error: no_such_scene: scene file not found")
+    assert len(bad.stderr.splitlines()) == 1
