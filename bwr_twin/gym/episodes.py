@@ -173,8 +173,6 @@ class Episodes:
     def _observe(self, group: Group, runs: np.ndarray) -> None:
         """Measure the lockstep (once a period, for all its runs) and observe `runs`."""
         loop = group.loop
-        # After the path's last period this reads the encoders once more; the lockstep's own
-        # metrics and records, which the environment never reads, then count that period twice.
         q, qd = loop.measure()
         k = min(loop.k, loop.samples - 1)  # past the path's end the reference is its end point
         slots = group.slots[runs]

@@ -175,7 +175,7 @@ class Lockstep:
         self._q, self._q_last, self._qd, self._qd_last = self._q_last, self._q, self._qd_last, self._qd
         np.copyto(self._q, self.plant.qpos)
         np.copyto(self._qd, self.plant.qvel)
-        if self.k:
+        if 0 < self.k < self.samples:  # the last period's sample is finished by advance()
             self._finish(self.k - 1, self._q_last, self._qd_last, self._qd)
         self._measured = self._encoders.measure(self._q, self._qd)
         return self._measured
