@@ -41,14 +41,6 @@ class Surface:
         """m^3 of material above the floor, for these heights or for `z` on the same grid."""
         return float(np.sum(self.z if z is None else z) * self.cell_area)
 
-    def height_at(self, x: float, y: float) -> float:
-        """The height (m) of the grid sample nearest to world (x, y), 0 off the grid."""
-        ix = int(round((x - self.x[0]) / self.spacing))
-        iy = int(round((y - self.y[0]) / self.spacing))
-        if 0 <= ix < len(self.x) and 0 <= iy < len(self.y):
-            return float(self.z[iy, ix])
-        return 0.0
-
 
 def build_surface(section: StockpileSection, scene_path: Path) -> Surface:
     """The surface a scene's [stockpile] describes. Raises SceneError naming the file and key."""
