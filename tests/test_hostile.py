@@ -75,6 +75,20 @@ def read_only(tmp: Path) -> Path:
     return tmp / "locked" / "out"
 
 
+# A windrow beside the paper machine's rail, `y` m from it.
+_PILE = """[stockpile]
+bulk_density = 2400.0
+grid_spacing = 0.25
+
+[stockpile.windrow]
+length = 20.0
+crest_width = 4.0
+height = 8.0
+angle_of_repose = 37.0
+centre = [0.0, {y}]
+
+"""
+
 # (id, command, argument builder(tmp) -> arguments, scene edit, pattern of the one error line)
 REFUSALS = [
     # 1. Output paths
@@ -159,6 +173,19 @@ REFUSALS = [
     ("a-week-of-seeds", "batch", lambda t: [_sweep(t, seeds="1000"), "--out", t / "b"],
      edited(**{"timestep = 0.002 ": "timestep = 1e-7 "}),  # about 100 h on two workers
      r"sweep.toml: would take more than 12 h: 1000 runs, 2e\+11 physics steps, about [\d.]+ (h|days)"),
+    # 5. Stockpiles the machine cannot dig
+    ("stockpile-on-the-rail", "run", lambda t: ["short.toml", "--out", t / "o"],
+     edited(**{"[simulation]": _PILE.format(y=2.0) + "[simulation]"}),
+     r"short.toml: \[stockpile\]: the pile comes within 0.12 m of the rail axis; the machine needs 3.00 m clear"),
+    ("stockpile-out-of-reach", "run", lambda t: ["short.toml", "--out", t / "o"],
+     edited(**{"[simulation]": _PILE.format(y=300.0) + "[simulation]"}),
+     r"short.toml: \[stockpile\]: no part of the pile .* is within the wheel's reach: 59.3 m from the slew axis"),
+    ("stockpile-survey-missing", "replay", lambda t: ["short.toml", "--export", t / "a.html"],
+     edited(**{"[simulation]": "[stockpile]\nbulk_density = 2400.0\nsurface_file = \"nowhere.csv\"\n\n[simulation]"}),
+     r"'stockpile.surface_file' names a file that does not exist: .*nowhere.csv"),
+    ("stockpile-grid-of-a-billion-cells", "run", lambda t: ["short.toml", "--out", t / "o"],
+     edited(**{"[simulation]": _PILE.format(y=30.0).replace("grid_spacing = 0.25", "grid_spacing = 0.002") + "[simulation]"}),
+     r"'stockpile.grid_spacing' gives .* height samples, more than 2e\+07: choose a coarser grid"),
     # 6. Replay input
     ("replay-scene-json-a-list", "replay", lambda t: [_run_dir(t, scene="[]", rows=2), "--export", t / "a.html"], None,
      r"run/scene.json: "),
@@ -224,7 +251,7 @@ def test_hostile_input_is_refused_and_destroys_nothing(tmp_path, case):
 
 
 def test_the_catalogue_covers_every_class():
-    classes = {"run-into", "export-", "batch-into", "nan-", "inf-", "nanosecond", "hundred", "replay-"}
+    classes = {"run-into", "export-", "batch-into", "nan-", "inf-", "nanosecond", "hundred", "stockpile-", "replay-"}
     assert all(any(case[0].startswith(c) for case in REFUSALS) for c in classes)
     assert len({case[0] for case in REFUSALS}) == len(REFUSALS)
 
