@@ -1,5 +1,5 @@
-"""uPlot charts of a recording: position and velocity error per axis and the joint trajectories,
-with a vertical line at the current time.
+"""uPlot charts of a recording: position and velocity error per axis, the reclaim rate (with a
+stockpile) and the joint trajectories, with a vertical line at the current time.
 
 uPlot has no marker API reachable from viser, and viser sends data as float arrays (no nulls,
 so no gaps), so the line is a series of its own on a fixed 0-1 scale: it lies below the plot
@@ -113,8 +113,12 @@ def charts(recording: Recording) -> list[Chart]:
         left="travel [m]",
         right="slew, luff [deg]",
     )
-    return [
+    out = [
         error_chart("Position error (desired - actual)", recording.q_error, ""),
         error_chart("Velocity error (desired - actual)", recording.qd_error, "/s"),
-        trajectory_chart,
     ]
+    if recording.reclaim_rate is not None:
+        rate = recording.reclaim_rate[samples]
+        out.append(_frame("Reclaim rate", [_line("rate [t/h]", AXIS_COLOURS[0], "m")], time, [rate],
+                          left="rate [t/h]", right=""))
+    return out + [trajectory_chart]

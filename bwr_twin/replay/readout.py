@@ -40,6 +40,8 @@ def as_markdown(instant: Instant, duration: float) -> str:
     lines += [
         f"| {axis} | {desired} | {actual} | {error} |" for axis, desired, actual, error in rows(instant)
     ]
+    if instant.reclaim_rate is not None:
+        lines += ["", f"reclaim rate **{instant.reclaim_rate:,.0f} t/h**"]
     return "\n".join(lines)
 
 
@@ -49,4 +51,6 @@ def as_text(instant: Instant, duration: float) -> str:
     lines += [
         f"{axis:<6} {desired:>12} {actual:>12} {error:>13}" for axis, desired, actual, error in rows(instant)
     ]
+    if instant.reclaim_rate is not None:
+        lines.append(f"reclaim rate {instant.reclaim_rate:,.0f} t/h")
     return "\n".join(lines)

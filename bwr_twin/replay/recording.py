@@ -23,12 +23,15 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES, Machine, paper_to_world
 from bwr_twin.shipped import PACKAGE
+from bwr_twin.stockpile.history import PileHistory
+from bwr_twin.stockpile.surface import Surface, build_surface
 
 if TYPE_CHECKING:
     from bwr_twin.results.record import RunResult
 
 # The sub-packages whose code decides a run (the replay's own code does not).
-_SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "results"))
+_SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "stockpile",
+                                                      "results"))
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,7 @@ class Plan:
     cp_desired: np.ndarray
     via_times: np.ndarray  # (k,) s
     via_points: np.ndarray  # (k, 3) m
+    pile: Surface | None = None  # the stockpile at the start, if the scene has one
 
     @property
     def duration(self) -> float:
@@ -62,6 +66,7 @@ class Plan:
         period = scene.simulation.record_period
         time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
         q_desired, qd_desired, _ = trajectory.sample(time)
+        pile = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
         return cls(
             machine=machine,
             title=scene.path.name,
@@ -71,6 +76,7 @@ class Plan:
             cp_desired=machine.fk(q_desired),
             via_times=trajectory.times,
             via_points=trajectory.points,
+            pile=pile,
         )
 
 
@@ -83,6 +89,7 @@ class Instant:
     q_actual: np.ndarray
     cp_desired: np.ndarray  # (3,) m
     cp_actual: np.ndarray
+    reclaim_rate: float | None = None  # t/h, with a stockpile
 
     @property
     def q_error(self) -> np.ndarray:
@@ -98,6 +105,8 @@ class Recording:
     q_actual: np.ndarray  # (n, 3) m, rad, rad
     qd_actual: np.ndarray  # (n, 3) m/s, rad/s, rad/s
     cp_actual: np.ndarray  # (n, 3) m
+    reclaim_rate: np.ndarray | None = None  # (n,) t/h, with a stockpile
+    pile: PileHistory | None = None  # the pile as it was dug, with a stockpile
 
     @property
     def q_error(self) -> np.ndarray:
@@ -124,12 +133,13 @@ class Recording:
             q_actual=blend(self.q_actual),
             cp_desired=blend(self.plan.cp_desired),
             cp_actual=blend(self.cp_actual),
+            reclaim_rate=float(self.reclaim_rate[k + round(s)]) if self.reclaim_rate is not None else None,
         )
 
     @classmethod
     def from_run_dir(cls, run_dir: str | Path) -> Recording:
         """Read a run directory written by `python -m bwr_twin.run` (or `results.write_run`)."""
-        from bwr_twin.results.rundir import SCENE_FILE, TIMESERIES_FILE, read_timeseries
+        from bwr_twin.results.rundir import PILE_FILE, SCENE_FILE, TIMESERIES_FILE, read_timeseries
 
         run_dir = Path(run_dir)
         missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
@@ -144,7 +154,8 @@ class Recording:
             if rows < 2:
                 raise BwrError(f"{run_dir / TIMESERIES_FILE}: {rows} rows of samples; a replay needs at least 2")
             machine = Machine(scene["machine"]["mjcf"])
-            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name)
+            pile = PileHistory.read(run_dir / PILE_FILE) if (run_dir / PILE_FILE).is_file() else None
+            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile)
         except (ValueError, OSError) as exc:
             raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
         except KeyError as exc:
@@ -164,13 +175,19 @@ class Recording:
 
         names, values = timeseries_columns(result)
         columns = dict(zip(names, values.T))
+        reclaim, pile = result.reclaim, None
+        if reclaim is not None:
+            pile = reclaim.history or PileHistory.from_frames(
+                reclaim.x, reclaim.y, reclaim.z_start,
+                [(float(result.time[-1]), np.arange(reclaim.z_end.size), reclaim.z_end.ravel())])
         return cls._from_columns(
-            columns, result.scene.to_dict(), result.machine, title=result.scene.path.name
+            columns, result.scene.to_dict(), result.machine, title=result.scene.path.name, pile=pile
         )
 
     @classmethod
     def _from_columns(
-        cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str
+        cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str,
+        pile: PileHistory | None = None,
     ) -> Recording:
         from bwr_twin.results.rundir import column_name
 
@@ -193,8 +210,10 @@ class Recording:
             cp_desired=cp("desired"),
             via_times=np.array([v["t"] for v in path["via_points"]], dtype=float),
             via_points=via_points,
+            pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
         )
-        return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"))
+        return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
+                   reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile)
 
 
 def decimate(time: np.ndarray, step: float) -> np.ndarray:
@@ -206,8 +225,8 @@ def decimate(time: np.ndarray, step: float) -> np.ndarray:
 
 def cache_key(scene: Scene) -> str:
     """A digest of everything that decides a run: the resolved scene, both compiled models
-    (includes and meshes too), the controller's files (a rule base, an engineer's Python file)
-    and the package's simulation code."""
+    (includes and meshes too), the controller's files (a rule base, an engineer's Python file),
+    a surveyed pile's file and the package's simulation code."""
     digest = hashlib.sha256()
     settings = scene.to_dict()
     settings.pop("path")  # where the scene file lives does not change the run
@@ -217,7 +236,8 @@ def cache_key(scene: Scene) -> str:
         compiled = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
         mujoco.mj_saveModel(model, None, compiled)
         digest.update(compiled.tobytes())
-    for file in scene.controller.files:
+    survey = (scene.stockpile.surface_file,) if scene.stockpile and scene.stockpile.surface_file else ()
+    for file in (*scene.controller.files, *survey):
         digest.update(file.read_bytes())
     for source in sorted(path for folder in _SIMULATION_CODE for path in folder.rglob("*.py")):
         digest.update(source.read_bytes())

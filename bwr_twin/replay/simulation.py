@@ -25,6 +25,7 @@ from bwr_twin.replay.recording import Recording, cache_key
 
 CACHE_ROOT = Path("out") / "replay-cache"  # relative to the current folder, as `--out` paths are
 SIMULATION_NICENESS = 10  # the page is drawn first; the simulation takes the CPU that is left
+PILE_FRAME_PERIOD = 5.0  # s of simulated time between the pile's frames: it is seen being dug
 
 
 def cached_run(scene: Scene) -> Path:
@@ -79,7 +80,8 @@ def _simulate_into(scene: Scene, run_dir: str, reports: Connection) -> None:
     from bwr_twin.sim.lockstep import simulate
 
     try:
-        result = simulate(scene, progress=lambda done, total: reports.send(("progress", done / total)))
+        result = simulate(scene, progress=lambda done, total: reports.send(("progress", done / total)),
+                          pile_frame_period=PILE_FRAME_PERIOD)
         write_run(result, run_dir, overwrite=True, plots=False)
         reports.send(("done", None))
     except BwrError as exc:

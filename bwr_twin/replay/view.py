@@ -1,7 +1,8 @@
 """The 3D scene of a replay on a viser server, and how one instant of a recording poses it.
 
-Meshes, the pile, the paths and the via points are sent once. An instant then costs one pose
-per moving rigid body, the target's position and the tip of the CP trail; the caller wraps it
+Meshes, the paths and the via points are sent once. An instant then costs one pose per moving
+rigid body, the target's position, the tip of the CP trail and the pile's tiles dug since the
+last instant (bwr_twin.replay.pile); the caller wraps it
 in `server.atomic()` so that a frame arrives whole. The live replay and the HTML export share
 this code, so they show the same picture.
 """
@@ -12,6 +13,7 @@ import numpy as np
 import viser
 
 from bwr_twin.replay.geometry import BodyPoser, visual_geoms
+from bwr_twin.replay.pile import PileView
 from bwr_twin.replay.recording import Plan, Recording, decimate
 from bwr_twin.replay.scenery import CAMERA_FOV, frame_view, stockpile
 
@@ -63,6 +65,7 @@ class SceneView:
         self.geoms = visual_geoms(plan.machine)
         self.recording: Recording | None = None
         self.ghost: Ghost | None = None
+        self.pile: PileView | None = None
         scene = server.scene
         self.bodies = [scene.add_frame(f"/machine/{name}", show_axes=False) for name in self.poser.names]
         self.geom_nodes = [
@@ -86,18 +89,24 @@ class SceneView:
         """Pile, ground and an initial camera that frames machine, pile and path (in the part
         of the window that a GUI panel covering `panel_share` of its width on the right leaves)."""
         plan, scene = self.plan, self.server.scene
-        pile = stockpile(plan.via_points, rail_y=plan.machine.geometry.slew_axis_xy[1])
+        rail_y = plan.machine.geometry.slew_axis_xy[1]
         moving = {name for name, moves in zip(self.poser.names, self.poser.moving) if moves}
         machine = [geom for geom in self.geoms if geom.body in moving]  # not the rail: it may run far on
         extent = [plan.cp_desired] + [
             self.poser.world_vertices(machine, q) for q in (plan.q_desired[0], plan.q_desired[len(plan.time) // 2])
         ]
-        if pile is not None:
-            scene.add_mesh_simple("/pile", pile.vertices, pile.faces, color=ORE_COLOUR, flat_shading=True)
-            extent.append(pile.vertices)
-        view = frame_view(
-            np.concatenate(extent), pile_side=pile.side if pile is not None else 1.0, panel_share=panel_share
-        )
+        side = 1.0
+        if plan.pile is not None:  # the scene's stockpile, dug as the run goes
+            self.pile = PileView(scene, plan.pile.x, plan.pile.y, plan.pile.z)
+            extent.append(self.pile.corners)
+            side = float(np.sign(np.mean(plan.pile.y) - rail_y)) or 1.0
+        else:  # scenery: a pile painted under the path, which nothing digs
+            painted = stockpile(plan.via_points, rail_y=rail_y)
+            if painted is not None:
+                scene.add_mesh_simple("/pile", painted.vertices, painted.faces, color=ORE_COLOUR, flat_shading=True)
+                extent.append(painted.vertices)
+                side = painted.side
+        view = frame_view(np.concatenate(extent), pile_side=side, panel_share=panel_share)
         self.caption_position = view.caption
         camera = self.server.initial_camera
         camera.position, camera.look_at, camera.up, camera.fov = (
@@ -151,6 +160,8 @@ class SceneView:
     def attach(self, recording: Recording) -> None:
         """Add the actual CP trail in chunks, each sent once and then only shown or hidden."""
         self.recording = recording
+        if self.pile is not None and recording.pile is not None:
+            self.pile.attach(recording.pile)
         samples = decimate(recording.plan.time, PATH_STEP)
         self.trail_time = recording.plan.time[samples]
         self.trail_points = recording.cp_actual[samples]
@@ -186,6 +197,8 @@ class SceneView:
             self.ghost.show(t)
         instant = self.recording.at(t)
         self._place(instant.q_actual)
+        if self.pile is not None:
+            self.pile.show(t)
         self.target.position = instant.cp_desired
         last = max(0, int(np.searchsorted(self.trail_time, t, side="right")) - 1)
         complete = last // TRAIL_CHUNK  # chunks wholly before t

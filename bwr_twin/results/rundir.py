@@ -5,7 +5,8 @@ Layout of a run directory (the output contract of docs/contracts.md, plus more):
     metrics.json      per-axis error maxima (signed), their times, RMS, drive saturation
     timeseries.csv    every signal at the record period; units in the column names
     scene.json        the resolved scene, so the run can be replayed without its files' paths
-    pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m)
+    pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m), and
+                      for a replay the cells dug frame by frame (bwr_twin.stockpile.history)
     *.png             the paper's figures for this run (bwr_twin.results.plots)
 """
 
@@ -174,7 +175,9 @@ def write_run(
         (staging / SCENE_FILE).write_text(json.dumps(result.scene.to_dict(), indent=2) + "\n")
         if result.reclaim is not None:
             pile = result.reclaim
-            np.savez_compressed(staging / PILE_FILE, x=pile.x, y=pile.y, z_start=pile.z_start, z_end=pile.z_end)
+            history = pile.history.arrays() if pile.history is not None else {}
+            np.savez_compressed(staging / PILE_FILE, x=pile.x, y=pile.y, z_start=pile.z_start, z_end=pile.z_end,
+                                **history)
         if plots:
             from bwr_twin.results.plots import save_run_figures
 

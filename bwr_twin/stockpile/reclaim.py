@@ -23,6 +23,7 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.stockpile.cutting import Cutter
+from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.surface import Surface
 
@@ -42,7 +43,7 @@ class ReclaimRecord:
     y: np.ndarray
     z_start: np.ndarray  # (ny, nx) m
     z_end: np.ndarray
-    frames: list[tuple[float, np.ndarray, np.ndarray]]  # (t s, flat cell indices, new heights m) as it was dug
+    history: PileHistory | None  # the pile as it was dug, if kept
 
 
 class Reclaim:
@@ -205,5 +206,7 @@ class Reclaim:
             digging_force=self.recorded["force"][:, run].copy(),
             wheel_power=self.recorded["power"][:, run].copy(),
             x=self.surface.x, y=self.surface.y, z_start=self.surface.z,
-            z_end=self.cutter.heights[run].copy(), frames=self._frames[run],
+            z_end=self.cutter.heights[run].copy(),
+            history=PileHistory.from_frames(self.surface.x, self.surface.y, self.surface.z, self._frames[run])
+            if self._framed is not None else None,
         )
