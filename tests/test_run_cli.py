@@ -92,3 +92,14 @@ def test_a_negative_seed_exits_2_naming_the_key(tmp_path):
 def test_missing_scene_file_exits_2(tmp_path):
     proc = run_cli(tmp_path / "nope.toml", "--out", tmp_path / "out")
     assert proc.returncode == 2 and "nope.toml: scene file not found" in proc.stderr
+
+
+@pytest.mark.parametrize("command", ["run", "batch", "compare", "tune", "replay", "fis", "gym_help"])
+def test_every_command_explains_itself(command):
+    if command == "gym_help":  # the examples' command lines
+        args = [str(ROOT / "examples" / "gym_pd.py"), "--help"]
+    else:
+        args = ["-m", f"bwr_twin.{command}", "--help"]
+    proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("usage: ") and "Traceback" not in proc.stderr

@@ -34,8 +34,9 @@ SAMPLE_BYTES = 13 * 8  # the path sampled at the control period: time, q, qd, qd
 MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
 MAX_MEMORY_SHARE = 0.5  # of this machine's RAM, all workers' locksteps together
 MAX_DISK_SHARE = 0.9  # of the free space where the results go
-FORCE_HELP = (f"start even if the estimate exceeds {MAX_HOURS:g} h, {MAX_MEMORY_SHARE:.0%} of the memory "
-              f"or {MAX_DISK_SHARE:.0%} of the free disk")
+# An argparse help text, where a percent sign is written %%.
+FORCE_HELP = (f"start even if the estimate exceeds {MAX_HOURS:g} h, {100 * MAX_MEMORY_SHARE:.0f}%% of the "
+              f"memory or {100 * MAX_DISK_SHARE:.0f}%% of the free disk")
 
 
 @dataclass(frozen=True)
