@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from bwr_twin.config.scene import Scene
+from bwr_twin.config.scene import Scene, StockpileSection
 from bwr_twin.errors import BwrError
 
 # Measured costs (docs/performance.md), rounded up.
@@ -29,6 +29,9 @@ RUN_FILES_BYTES = 8_000  # metrics.json and scene.json
 PLOTS_BYTES = 700_000  # one run's PNG figures
 RECORD_ROW_BYTES = 46 * 8  # a run's record in memory per row: 46 float64 signals
 SAMPLE_BYTES = 13 * 8  # the path sampled at the control period: time, q, qd, qdd, CP
+PILE_PERIOD_S = 150e-6  # s per control period and run with a stockpile: the cut and its accounting
+PILE_CELL_BYTES = 8  # a run's pile heights in memory, per cell
+PILE_FILE_CELL_BYTES = 8  # pile.npz per cell: z_start and z_end, compressed
 
 # Bounds a command refuses to go beyond without --force.
 MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
@@ -57,7 +60,7 @@ class Estimate:
 
 def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots: bool = False) -> Estimate:
     """The cost of simulating `scenes` in locksteps of `chunk` runs on `workers` processes."""
-    steps = periods = rows = cpu = 0.0
+    steps = periods = rows = cpu = pile_cells_written = 0.0
     peak_lockstep = 0.0
     for scene in scenes:
         sim = scene.simulation
@@ -66,16 +69,33 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_periods = duration / sim.control_period + 1
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
+        cells = pile_cells(scene.stockpile, scene.path) if scene.stockpile is not None else 0
         steps += run_steps
         periods += run_periods
         rows += run_rows
+        pile_cells_written += cells
         cpu += run_steps * STEP_S + run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk)
+        cpu += run_periods * PILE_PERIOD_S if cells else 0.0
         cpu += FILES_S + (PLOTS_S if plots else 0.0)
-        peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES + chunk * run_rows * RECORD_ROW_BYTES)
+        peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES
+                            + chunk * (run_rows * RECORD_ROW_BYTES + cells * PILE_CELL_BYTES))
     runs = len(scenes)
     parallel = max(1, min(workers, math.ceil(runs / chunk)))
     disk = rows * ROW_BYTES + runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
+    disk += pile_cells_written * PILE_FILE_CELL_BYTES
     return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
+
+
+def pile_cells(section: StockpileSection, scene_path: Path) -> int:
+    """How many heights a run's pile holds, from its scene section alone for a windrow."""
+    if section.windrow is None:
+        from bwr_twin.stockpile.surface import build_surface
+
+        return build_surface(section, scene_path).z.size  # a survey: read once, then cached
+    w = section.windrow
+    spread = 2 * w.height / math.tan(math.radians(w.angle_of_repose))
+    return math.ceil((w.length + spread) / section.grid_spacing + 3) * math.ceil(
+        (w.crest_width + spread) / section.grid_spacing + 3)
 
 
 def check_estimate(cost: Estimate, *, where: Path | str, out_dir: Path, force: bool) -> None:
