@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run test test-quick bench bench-replay bench-batch clean
+.PHONY: setup run dig test test-quick bench bench-replay bench-batch bench-gym clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +18,9 @@ setup: $(VENV)/.installed
 
 run: setup
 	$(PY) -m bwr_twin.replay
+
+dig: setup
+	$(PY) -m bwr_twin.replay heavy_dig_pile
 
 test: setup
 	$(PY) -m pytest
@@ -33,6 +36,9 @@ bench-replay: setup
 
 bench-batch: setup
 	$(PY) tools/bench_batch.py
+
+bench-gym: setup
+	$(PY) tools/bench_gym.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -195,3 +195,40 @@ def test_export_plays_from_a_file_url(browser, recording, tmp_path):
         assert [url for url in fetched if not url.startswith(("file:", "data:", "blob:"))] == []
     finally:
         page.close()
+
+
+def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
+    from test_stockpile import SHORT_DIG
+
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.replay.simulation import PILE_FRAME_PERIOD
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.sim.lockstep import simulate
+
+    scene = load_scene(SCENES / "heavy_dig_pile.toml", SHORT_DIG)
+    write_run(simulate(scene, pile_frame_period=PILE_FRAME_PERIOD), tmp_path / "dig", plots=False)
+    dig = Recording.from_run_dir(tmp_path / "dig")
+    assert len(dig.pile.frame_time) > 5  # the pile as it was dug, every few seconds
+
+    with ReplayServer(dig, port=0) as server:
+        page = browser.new_page()
+        try:
+            page.goto(server.url)
+            tiles = server.view.pile._tiles
+            pile_triangles = sum(len(t._ore.faces) + len(t._cut.faces) for t in tiles)
+            machine_triangles = sum(len(g.faces) for g in server.view.geoms)
+            page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {machine_triangles + pile_triangles}",
+                                   timeout=WAIT_MS, polling=100)  # the browser draws the whole pile
+            assert all(len(t._cut.faces) == 1 for t in tiles)  # nothing cut yet: each a placeholder
+            server.player.seek(float(dig.plan.time[-1]))
+            time.sleep(2.0)
+            cut = [t for t in tiles if len(t._cut.faces) > 1]
+            assert cut, "no tile was sent again as dug"
+            start, tile = server.view.pile._start, cut[0]
+            assert (start[tile.rows, tile.cols].ravel() - tile._cut.vertices[:, 2]).max() > 0.3  # m lower than it stood
+            screenshot_showing_machine(page, server.view.geoms, "replay_pile_dug.png")
+            server.player.seek(0.0)  # back in time: the pile stands whole again
+            time.sleep(2.0)
+            assert all(len(t._cut.faces) == 1 for t in tiles)
+        finally:
+            page.close()

@@ -19,7 +19,7 @@ MAX_DISPLAY_VERTICES = 20_000
 TILE = 8  # display cells along a tile's side
 CUT_SHOWN = 0.05  # m below the start height: a face lower than that shows as freshly cut
 ORE_COLOUR = (112, 66, 44)  # weathered iron ore
-CUT_COLOUR = (168, 92, 52)  # a fresh face
+CUT_COLOUR = (230, 110, 30)  # a fresh face: bright ore, seen from afar
 
 
 class PileView:
