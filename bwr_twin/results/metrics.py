@@ -161,11 +161,12 @@ def summary_table(metrics: dict) -> str:
     lines.append(f"largest CP distance from its desired position: {metrics['cp_error_max']:.4g} m @ {metrics['cp_error_max_time']:.1f} s")
     reclaim = metrics.get("reclaim")
     if reclaim is not None:
+        load = reclaim["digging_force_max_N"]
         lines.append(
             f"reclaimed {reclaim['mass_t']:.1f} t ({reclaim['volume_m3']:.1f} m³): mean {reclaim['rate_mean_tph']:.0f} t/h "
             f"over {reclaim['carrying_time_s']:.0f} s of carrying, CV {reclaim['rate_cv']:.2f}, peak "
-            f"{reclaim['rate_max_tph']:.0f} t/h; spilled {reclaim['spill_t']:.1f} t; digging load up to "
-            f"{reclaim['digging_force_max_N'] / 1e3:.0f} kN"
+            f"{reclaim['rate_max_tph']:.0f} t/h; spilled {reclaim['spill_t']:.1f} t"
+            + (f"; digging load up to {load / 1e3:.0f} kN" if load > 0 else "")
         )
         if reclaim["spill_t"] > 0:
             lines.append(f"warning: the wheel dug more than its buckets hold: {reclaim['spill_t']:.1f} t spilled")
