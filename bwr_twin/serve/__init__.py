@@ -1,0 +1,12 @@
+"""The twin as an OPC UA server: one run of a scene is the machine, a PLC (the client) computes
+the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.md.
+
+    twin.py           the machine: one run, advanced a control period at a time
+    address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
+    clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
+    security.py       users file, password hashes, who may write; policies per endpoint
+    announce.py       what the server prints it exposes
+    server.py         the asyncua server around them, start to clean stop
+    cli.py            the command line
+    passwd.py         a users-file line: python -m bwr_twin.serve.passwd NAME
+"""
