@@ -10,3 +10,13 @@ the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.m
     cli.py            the command line
     passwd.py         a users-file line: python -m bwr_twin.serve.passwd NAME
 """
+
+from bwr_twin.errors import BwrError
+
+# Kept here, light, so that the command line checks its arguments before importing asyncua and MuJoCo.
+LOCKSTEP, REALTIME = "lockstep", "realtime"
+DEFAULT_WATCHDOG_PERIODS = 10  # control periods without a DriveSetpoint write before the drives stop
+
+
+class ServeError(BwrError):
+    """An endpoint or option the server cannot serve."""

@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import errno
+import socket
 import sys
 from pathlib import Path
 from urllib.parse import urlparse
 
 from bwr_twin.errors import exit_status
-from bwr_twin.serve.clock import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
+from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME, ServeError
 
 DEFAULT_ENDPOINT = "opc.tcp://127.0.0.1:4840"
 DEFAULT_PORT = 4840  # OPC UA's registered port, when the URL gives none
@@ -49,18 +51,25 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from bwr_twin.config.scene import load_scene
-    from bwr_twin.run import scene_overrides
-    from bwr_twin.serve.server import Options, ServeError, serve
-    from bwr_twin.shipped import find_scene
-
-    url, host, port = _endpoint(args.endpoint, ServeError)
+    url, host, port = _endpoint(args.endpoint)
     if not args.realtime and args.speed != 1.0:
         raise ServeError("--speed applies to --realtime only")
     if not 0 < args.speed <= 1000:
         raise ServeError(f"--speed {args.speed:g}: must lie in (0, 1000]")
     if args.watchdog_periods < 0:
         raise ServeError(f"--watchdog-periods {args.watchdog_periods}: must be >= 0 (0: no watchdog)")
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.run import scene_overrides
+    from bwr_twin.serve.announce import is_loopback
+    from bwr_twin.serve.security import check_options, load_users
+    from bwr_twin.serve.server import Options, serve
+    from bwr_twin.shipped import find_scene
+
+    _check_listenable(url, host, port)
+    check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
+                  private_key=args.private_key)
+    if args.users is not None:
+        load_users(args.users)  # a bad line stops here, before any work
     scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
     options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
                       speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
@@ -68,16 +77,32 @@ def _serve(args: argparse.Namespace) -> int:
     return asyncio.run(serve(scene, options))
 
 
-def _endpoint(text: str, error: type[Exception]) -> tuple[str, str, int]:
-    """(url, host, port) of an opc.tcp URL; `error` naming the option if it is not one."""
+def _check_listenable(url: str, host: str, port: int) -> None:
+    """ServeError at once if the endpoint's address cannot be bound (the server binds it only after
+    seconds of start-up)."""
+    try:
+        family, kind, protocol, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except socket.gaierror as exc:
+        raise ServeError(f"--endpoint {url}: cannot resolve {host} ({exc.strerror})") from None
+    with socket.socket(family, kind, protocol) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as asyncio's server does
+        try:
+            probe.bind(address)
+        except OSError as exc:
+            reason = f"port {port} is in use" if exc.errno == errno.EADDRINUSE else exc.strerror
+            raise ServeError(f"--endpoint {url}: cannot listen ({reason})") from None
+
+
+def _endpoint(text: str) -> tuple[str, str, int]:
+    """(url, host, port) of an opc.tcp URL; ServeError naming the option if it is not one."""
     usage = f"--endpoint {text}: expected opc.tcp://HOST:PORT, e.g. {DEFAULT_ENDPOINT}"
     parsed = urlparse(text)
     try:
         port = parsed.port
     except ValueError:
-        raise error(f"{usage} (port must be 1-65535)") from None
+        raise ServeError(f"{usage} (port must be 1-65535)") from None
     if parsed.scheme != "opc.tcp" or not parsed.hostname or parsed.path not in ("", "/") or port == 0:
-        raise error(usage)
+        raise ServeError(usage)
     host, port = parsed.hostname, port or DEFAULT_PORT
     return f"opc.tcp://{f'[{host}]' if ':' in host else host}:{port}", host, port
 

@@ -17,11 +17,10 @@ from collections.abc import Callable
 import numpy as np
 from asyncua import ua
 
+from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
 from bwr_twin.serve.address_space import AddressSpace
 from bwr_twin.serve.twin import Twin
 
-LOCKSTEP, REALTIME = "lockstep", "realtime"
-DEFAULT_WATCHDOG_PERIODS = 10  # control periods without a DriveSetpoint write before the drives stop
 YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a turn
 
 Log = Callable[[str], None]

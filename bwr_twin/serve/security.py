@@ -77,7 +77,7 @@ class PasswordUsers(UserManager):
         self.users = users
 
     def get_user(self, iserver, username=None, password=None, certificate=None) -> User | None:
-        if username is None and certificate is None:
+        if username is None:  # an anonymous token (on a secure channel `certificate` is the client's own)
             return User(role=UserRole.Anonymous)
         stored = self.users.get(username or "")
         if stored is not None and password is not None and check_password(password, stored):
@@ -101,6 +101,20 @@ class ReadOnlyAnonymous(PermissionRuleset):
         return action_type_id in self._allowed[user.role]
 
 
+def check_options(*, url: str, loopback: bool, users_file: Path | None, certificate: Path | None,
+                  private_key: Path | None) -> None:
+    """SecurityError if the options would serve an address other than loopback open, or name
+    files that are not there; asked before any work starts."""
+    if (certificate is None) != (private_key is None):
+        raise SecurityError("--certificate and --private-key go together")
+    if not loopback and (users_file is None or certificate is None):
+        raise SecurityError(f"{url}: an endpoint other than loopback needs --users FILE and --certificate/"
+                            "--private-key (Basic256Sha256, signed and encrypted); refusing to serve it open")
+    for option, path in (("--users", users_file), ("--certificate", certificate), ("--private-key", private_key)):
+        if path is not None and not path.is_file():
+            raise SecurityError(f"{option} {path}: no such file")
+
+
 async def secure(server, *, url: str, loopback: bool, users_file: Path | None, certificate: Path | None,
                  private_key: Path | None) -> tuple[list[str], str]:
     """Set the server's security policies, identity tokens and permissions; return the policies'
@@ -110,15 +124,9 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
     sessions read only. Any other address needs users and a certificate: Basic256Sha256 with
     signing and encryption only, so that passwords and setpoints never travel in clear.
     """
-    if (certificate is None) != (private_key is None):
-        raise SecurityError("--certificate and --private-key go together")
-    if not loopback and (users_file is None or certificate is None):
-        raise SecurityError(f"{url}: an endpoint other than loopback needs --users FILE and --certificate/"
-                            "--private-key (Basic256Sha256, signed and encrypted); refusing to serve it open")
+    check_options(url=url, loopback=loopback, users_file=users_file, certificate=certificate,
+                  private_key=private_key)
     if certificate is not None:
-        for option, path in (("--certificate", certificate), ("--private-key", private_key)):
-            if not path.is_file():
-                raise SecurityError(f"{option} {path}: no such file")
         try:
             await server.load_certificate(str(certificate))
             await server.load_private_key(str(private_key))

@@ -14,19 +14,15 @@ from pathlib import Path
 from asyncua import Server
 
 from bwr_twin.config.scene import Scene
-from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
+from bwr_twin.serve import LOCKSTEP, ServeError
 from bwr_twin.serve.address_space import METHODS, NAMESPACE_URI, AddressSpace
 from bwr_twin.serve.announce import exposure_lines, is_loopback
-from bwr_twin.serve.clock import LOCKSTEP, Clock
+from bwr_twin.serve.clock import Clock
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.twin import Twin
 
 APPLICATION_URI = "urn:bwr_twin:serve"  # a server certificate's subjectAltName URI must be this
-
-
-class ServeError(BwrError):
-    """An endpoint the server cannot listen on."""
 
 
 @dataclass(frozen=True)
