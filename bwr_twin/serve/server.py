@@ -21,6 +21,7 @@ from bwr_twin.serve.announce import exposure_lines, is_loopback
 from bwr_twin.serve.clock import Clock
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.plant import mujoco_warnings
 
 APPLICATION_URI = "urn:bwr_twin:serve"  # a server certificate's subjectAltName URI must be this
 
@@ -73,7 +74,8 @@ async def serve(scene: Scene, options: Options, *, on_done=None) -> int:
                                methods=[f"Reclaimer/{m}" for m in METHODS], namespace=NAMESPACE_URI):
         _say(line)
     try:
-        await stopped.wait()
+        with mujoco_warnings():  # a diverging run is reported by the twin, not printed by MuJoCo
+            await stopped.wait()
     finally:
         await clock.close()
         await server.stop()

@@ -11,7 +11,6 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.results.record import RunResult
 from bwr_twin.sim.lockstep import Lockstep
-from bwr_twin.sim.plant import mujoco_warnings
 
 END_STOP_MARGIN = 1e-3  # share of a joint's range: closer than this to an end stop is "at" it, as the metrics say
 
@@ -66,8 +65,7 @@ class Twin:
     def advance(self, drive_force: np.ndarray) -> None:
         """Hold the (3,) drive forces (N, N m, N m) over one control period, then read the encoders."""
         self._command[0] = drive_force
-        with mujoco_warnings():
-            self.loop.advance(self._command)
+        self.loop.advance(self._command)  # inside the server's mujoco_warnings(): MuJoCo prints nothing
         self.reading["DriveApplied"] = self.loop.plant.drive_force[0].copy()
         if not self.loop.done:
             self._measure()
@@ -90,9 +88,9 @@ class Twin:
             "PeriodsLeft": self.periods_left,
             "EncoderPosition": q_measured[0].copy(),
             "EncoderVelocity": qd_measured[0].copy(),
-            "ReferencePosition": loop.q_desired[k].copy(),
-            "ReferenceVelocity": loop.qd_desired[k].copy(),
-            "ReferenceAcceleration": loop.qdd_desired[k].copy(),
+            "ReferencePosition": loop.q_desired[k],  # rows of the planned path: never written
+            "ReferenceVelocity": loop.qd_desired[k],
+            "ReferenceAcceleration": loop.qdd_desired[k],
             # The limit switches see the true joint, not the encoder.
             "AtLimit": (q_true <= self._low) | (q_true >= self._high),
         })
