@@ -168,11 +168,16 @@ def users_file(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def servers(short_scene, users_file):
+def run_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("out") / "run"
+
+
+@pytest.fixture(scope="module")
+def servers(short_scene, users_file, run_dir):
     """The two servers the tests share, started together: their start-up (about 3 s each, mostly
     asyncua's standard address space) overlaps on the machine's two cores."""
     launched = {
-        "lockstep": Launched(short_scene),
+        "lockstep": Launched(short_scene, "--out", str(run_dir), "--no-plots"),
         # Real-time mode and users; Ctrl-C stops it (the last test). With its clock stopped, Step works.
         "guarded": Launched(short_scene, "--realtime", "--watchdog-periods", "20", "--users", str(users_file),
                             stop_signal=signal.SIGINT),
@@ -243,8 +248,9 @@ def test_two_identical_sessions_read_identical_encoders(servers):
     assert np.ptp(first[0][:, 0]) > 0  # the machine moved: equal readings are not equal zeros
 
 
-def test_stepping_past_the_path_end_is_refused_until_reset(servers):
-    url = servers["lockstep"].ready()
+def test_stepping_past_the_path_end_is_refused_until_reset(servers, run_dir):
+    server = servers["lockstep"]
+    url = server.ready()
 
     async def session():
         async with client(url) as connection:
@@ -254,6 +260,7 @@ def test_stepping_past_the_path_end_is_refused_until_reset(servers):
             with pytest.raises(ua.uaerrors.BadInvalidState):
                 await plc.step(left + 1)  # refused whole: nothing stepped
             assert await plc.value("PeriodsLeft") == left
+            assert not run_dir.exists()  # --out: written only for a completed path
             sim_time = await plc.step(left)  # Step's output: SimTime after it
             assert await plc.value("PeriodsLeft") == 0
             with pytest.raises(ua.uaerrors.BadInvalidState):
@@ -266,6 +273,8 @@ def test_stepping_past_the_path_end_is_refused_until_reset(servers):
             return sim_time
 
     assert run(session()) == pytest.approx(20.0)
+    server.wait_for(f"results in {run_dir}/", 30.0)
+    assert sorted(p.name for p in run_dir.iterdir()) == [".bwr_twin", "metrics.json", "scene.json", "timeseries.csv"]
 
 
 def test_engineering_units_are_declared_on_every_variable(servers):

@@ -1,7 +1,8 @@
 """Serve one run of a scene over OPC UA: the twin is the machine, the client the PLC.
 
     python -m bwr_twin.serve SCENE [--endpoint opc.tcp://127.0.0.1:4840] [--realtime [--speed X] | --lockstep]
-        [--watchdog-periods N] [--users FILE [--certificate CERT --private-key KEY]] [--model MJCF] [--seed N]
+        [--watchdog-periods N] [--users FILE [--certificate CERT --private-key KEY]]
+        [--out DIR [--overwrite] [--no-plots]] [--model MJCF] [--seed N]
 
 SCENE is a scene file, or the name of a shipped one. The address space, modes, watchdog and
 security are in docs/opcua.md. Bad input exits with status 2 and one line; Ctrl-C stops the
@@ -44,6 +45,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--certificate", type=Path, help="server certificate (DER or PEM): Basic256Sha256, signed "
                         "and encrypted; needed, with --users, on any address but loopback")
     parser.add_argument("--private-key", type=Path, help="the certificate's private key (PEM)")
+    parser.add_argument("--out", type=Path, help="write each completed path's results here, as bwr_twin.run does "
+                        "(must not exist)")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out, a run directory the twin wrote")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures of --out")
     parser.add_argument("--model", help="machine MJCF replacing the scene's")
     parser.add_argument("--seed", type=int, help="disturbance seed replacing the scene's")
     args = parser.parse_args(argv)
@@ -73,7 +78,8 @@ def _serve(args: argparse.Namespace) -> int:
     scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
     options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
                       speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
-                      certificate=args.certificate, private_key=args.private_key)
+                      certificate=args.certificate, private_key=args.private_key, out=args.out,
+                      overwrite=args.overwrite, plots=not args.no_plots)
     return asyncio.run(serve(scene, options))
 
 

@@ -19,6 +19,7 @@ from bwr_twin.serve import LOCKSTEP, ServeError
 from bwr_twin.serve.address_space import METHODS, NAMESPACE_URI, AddressSpace
 from bwr_twin.serve.announce import exposure_lines, is_loopback
 from bwr_twin.serve.clock import Clock
+from bwr_twin.serve.results import RunWriter
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.twin import Twin
 from bwr_twin.sim.plant import mujoco_warnings
@@ -39,10 +40,17 @@ class Options:
     users: Path | None = None
     certificate: Path | None = None
     private_key: Path | None = None
+    out: Path | None = None
+    overwrite: bool = False
+    plots: bool = True
 
 
-async def serve(scene: Scene, options: Options, *, on_done=None) -> int:
+async def serve(scene: Scene, options: Options) -> int:
     """Serve the twin until SIGTERM (returns 0) or SIGINT (raises KeyboardInterrupt once stopped)."""
+    writer = None
+    if options.out is not None:
+        writer = RunWriter(options.out, overwrite=options.overwrite, plots=options.plots,
+                           inputs=scene.input_files, log=_say)
     logging.getLogger("asyncua").setLevel(logging.CRITICAL)  # the server reports in its own lines
     twin = Twin(scene)
     server = Server()
@@ -54,7 +62,7 @@ async def serve(scene: Scene, options: Options, *, on_done=None) -> int:
                                     users_file=options.users, certificate=options.certificate,
                                     private_key=options.private_key)
     clock = Clock(twin, mode=options.mode, speed=options.speed, watchdog_periods=options.watchdog_periods,
-                  log=_say, on_done=on_done)
+                  log=_say, on_done=writer)
     clock.space = space = await AddressSpace.build(server, clock.methods())
     for index, axis in enumerate(AXES):
         server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
@@ -78,6 +86,8 @@ async def serve(scene: Scene, options: Options, *, on_done=None) -> int:
             await stopped.wait()
     finally:
         await clock.close()
+        if writer is not None:
+            await writer.finish()
         await server.stop()
     _say("server stopped")
     if interrupted:
