@@ -82,7 +82,7 @@ class Clock:
         def setter(node_data, attribute, data_value: ua.DataValue) -> None:
             if not self._internal_write:
                 value = data_value.Value.Value
-                if not math.isfinite(value):
+                if not isinstance(value, float) or not math.isfinite(value):
                     raise ua.uaerrors.BadOutOfRange  # the whole Write answers with it
                 if self.watchdog_tripped:
                     raise ua.uaerrors.BadInvalidState  # latched until Reset, as a drive's fault
@@ -148,6 +148,14 @@ class Clock:
 
     async def _run(self) -> None:
         """Advance a period every period / speed of wall-clock time until Stop or the path's end."""
+        try:
+            await self._tick_until_done()
+        except Exception as exc:  # noqa: BLE001 - a clock that dies says so; the server goes on
+            self.running = False
+            self._log(f"error: the real-time clock stopped at SimTime {self.twin.reading['SimTime']:g} s: {exc!r}")
+            await self.publish()
+
+    async def _tick_until_done(self) -> None:
         twin = self.twin
         wall_period = twin.period / self.speed
         started, ticks = time.perf_counter(), 0

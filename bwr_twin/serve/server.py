@@ -47,6 +47,10 @@ class Options:
 
 async def serve(scene: Scene, options: Options) -> int:
     """Serve the twin until SIGTERM (returns 0) or SIGINT (raises KeyboardInterrupt once stopped)."""
+    stopped, interrupted = asyncio.Event(), []  # heard from here on; acted on once the server listens
+    loop = asyncio.get_running_loop()
+    loop.add_signal_handler(signal.SIGTERM, stopped.set)
+    loop.add_signal_handler(signal.SIGINT, lambda: (interrupted.append(True), stopped.set()))
     writer = None
     if options.out is not None:
         writer = RunWriter(options.out, overwrite=options.overwrite, plots=options.plots,
@@ -73,10 +77,6 @@ async def serve(scene: Scene, options: Options) -> int:
         reason = f"port {options.port} is in use" if exc.errno == errno.EADDRINUSE else exc.strerror or str(exc)
         raise ServeError(f"--endpoint {options.url}: cannot listen ({reason})") from None
 
-    stopped, interrupted = asyncio.Event(), []
-    loop = asyncio.get_running_loop()
-    loop.add_signal_handler(signal.SIGTERM, stopped.set)
-    loop.add_signal_handler(signal.SIGINT, lambda: (interrupted.append(True), stopped.set()))
     for line in exposure_lines(url=options.url, host=options.host, port=options.port, mode=_mode_line(clock),
                                policies=policies, access=access, writable=space.writable(),
                                methods=[f"Reclaimer/{m}" for m in METHODS], namespace=NAMESPACE_URI):
