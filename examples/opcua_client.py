@@ -30,6 +30,7 @@ async def run(url: str, periods: int) -> list[float]:
         measured = await nodes("EncoderPosition") + await nodes("EncoderVelocity")
         reference = await nodes("ReferencePosition") + await nodes("ReferenceVelocity")
         setpoints = await nodes("DriveSetpoint")
+        step = await reclaimer.get_child(f"{ns}:Step")  # found once: a name would be looked up every call
         await reclaimer.call_method(f"{ns}:Reset")
         worst = [0.0, 0.0, 0.0]
         for _ in range(periods):
@@ -38,7 +39,7 @@ async def run(url: str, periods: int) -> list[float]:
             forces = [HOLD[i] + KP[i] * (q_ref[i] - q[i]) + KD[i] * (qd_ref[i] - qd[i]) for i in range(3)]
             worst = [max(w, abs(r - m)) for w, r, m in zip(worst, q_ref, q)]
             await client.write_values(setpoints, [ua.Variant(f, ua.VariantType.Double) for f in forces])
-            await reclaimer.call_method(f"{ns}:Step", ua.Variant(1, ua.VariantType.UInt32))
+            await reclaimer.call_method(step, ua.Variant(1, ua.VariantType.UInt32))
         return worst
 
 

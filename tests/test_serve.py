@@ -23,7 +23,7 @@ from asyncua import Client, ua
 from conftest import ROOT, write_short_scene
 
 from bwr_twin.config.scene import load_scene
-from bwr_twin.serve.address_space import AXIS_VARIABLES, MACHINE_VARIABLES, NAMESPACE_URI, unit_of
+from bwr_twin.serve.address_space import AXIS_VARIABLES, MACHINE_VARIABLES, METHODS, NAMESPACE_URI, unit_of
 from bwr_twin.serve.security import hash_password
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.lockstep import Lockstep
@@ -110,8 +110,9 @@ def client(url: str, password: str | None = None) -> Client:
 class Plc:
     """A client's handles on the twin: per-axis nodes by variable name, machine nodes, methods."""
 
-    def __init__(self, client: Client, ns: int, reclaimer, axis: dict, machine: dict):
+    def __init__(self, client: Client, ns: int, reclaimer, axis: dict, machine: dict, methods: dict):
         self.client, self.ns, self.reclaimer, self.axis, self.machine = client, ns, reclaimer, axis, machine
+        self.methods = methods
 
     @classmethod
     async def attach(cls, client: Client) -> Plc:
@@ -120,7 +121,8 @@ class Plc:
         axis = {v.name: [await reclaimer.get_child([f"{ns}:{a.capitalize()}", f"{ns}:{v.name}"]) for a in AXES]
                 for v in AXIS_VARIABLES}
         machine = {v.name: await reclaimer.get_child(f"{ns}:{v.name}") for v in MACHINE_VARIABLES}
-        return cls(client, ns, reclaimer, axis, machine)
+        methods = {name: await reclaimer.get_child(f"{ns}:{name}") for name in METHODS}
+        return cls(client, ns, reclaimer, axis, machine, methods)
 
     async def read(self, *names: str) -> list[np.ndarray]:
         values = await self.client.read_values([n for name in names for n in self.axis[name]])
@@ -134,7 +136,7 @@ class Plc:
                                        [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
 
     async def call(self, method: str, *arguments):
-        return await self.reclaimer.call_method(f"{self.ns}:{method}", *arguments)
+        return await self.reclaimer.call_method(self.methods[method], *arguments)
 
     async def step(self, periods: int = 1):
         return await self.call("Step", ua.Variant(periods, ua.VariantType.UInt32))

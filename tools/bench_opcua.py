@@ -85,7 +85,7 @@ async def lockstep(url: str, periods: int) -> dict[str, float]:
         readings = (await axis("EncoderPosition") + await axis("EncoderVelocity") + await axis("ReferencePosition")
                     + await axis("ReferenceVelocity"))
         setpoints = await axis("DriveSetpoint")
-        step, one = f"{ns}:Step", ua.Variant(1, ua.VariantType.UInt32)
+        step, one = await reclaimer.get_child(f"{ns}:Step"), ua.Variant(1, ua.VariantType.UInt32)  # resolved once
         await reclaimer.call_method(f"{ns}:Reset")
         started = time.perf_counter()
         for _ in range(periods):
