@@ -279,6 +279,27 @@ def test_stepping_past_the_path_end_is_refused_until_reset(servers, run_dir):
     assert sorted(p.name for p in run_dir.iterdir()) == [".bwr_twin", "metrics.json", "scene.json", "timeseries.csv"]
 
 
+def test_bad_writes_and_calls_get_their_status_codes(servers):
+    async def session():
+        async with client(servers["lockstep"].ready()) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            await plc.set_drives((1.0, 2.0, 3.0))
+            travel = plc.axis["DriveSetpoint"][0]
+            with pytest.raises(ua.uaerrors.BadOutOfRange):
+                await travel.write_value(ua.Variant(float("nan"), ua.VariantType.Double))
+            with pytest.raises(ua.uaerrors.BadTypeMismatch):
+                await travel.write_value(ua.Variant(5, ua.VariantType.Int64))
+            with pytest.raises(ua.uaerrors.BadUserAccessDenied):  # not writable: the contract's "read"
+                await plc.axis["EncoderPosition"][0].write_value(ua.Variant(0.0, ua.VariantType.Double))
+            for method in ("Start", "Stop"):
+                with pytest.raises(ua.uaerrors.BadNotSupported):  # lockstep mode: no clock
+                    await plc.call(method)
+            return (await plc.read("DriveSetpoint"))[0]
+
+    assert run(session()).tolist() == [1.0, 2.0, 3.0]  # the refused writes changed nothing
+
+
 def test_engineering_units_are_declared_on_every_variable(servers):
     url = servers["lockstep"].ready()
 
@@ -307,7 +328,8 @@ def test_engineering_units_are_declared_on_every_variable(servers):
             return found
 
     found = run(session())
-    assert len(found) == 7 * 3 + 2  # every axis variable but AtLimit; SimTime, ControlPeriod
+    with_units = [v for v in AXIS_VARIABLES + MACHINE_VARIABLES if v.unit is not None]
+    assert len(found) == sum(3 if v in AXIS_VARIABLES else 1 for v in with_units) >= 7 * 3 + 2
     for key, unit in expected.items():
         assert found[key] == unit, key
 

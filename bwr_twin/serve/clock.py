@@ -197,7 +197,7 @@ class Clock:
         await self.publish()
         if self.twin.failure is not None:
             self.running = False
-            self._log(f"error: {self.twin.failure}; Reset starts the path again")
+            self._log(f"error: the simulation diverged ({self.twin.failure}); Reset starts the path again")
         elif self.twin.done:
             self._log(f"path completed at SimTime {self.twin.reading['SimTime'] + self.twin.period:g} s; "
                       "Reset starts it again")
