@@ -276,7 +276,8 @@ def test_stepping_past_the_path_end_is_refused_until_reset(servers, run_dir):
 
     assert run(session()) == pytest.approx(20.0)
     server.wait_for(f"results in {run_dir}/", 30.0)
-    assert sorted(p.name for p in run_dir.iterdir()) == [".bwr_twin", "metrics.json", "scene.json", "timeseries.csv"]
+    written = sorted(p.name for p in run_dir.iterdir())
+    assert written == [".bwr_twin", "metrics.json", "scene.json", "timeseries.csv"]
 
 
 def test_bad_writes_and_calls_get_their_status_codes(servers):
@@ -306,10 +307,15 @@ def test_engineering_units_are_declared_on_every_variable(servers):
     def unece(code: str) -> int:  # OPC UA Part 8: the code's characters as the bytes of an Int32
         return int.from_bytes(code.encode(), "big")
 
-    expected = {("EncoderPosition", "travel"): ("m", unece("MTR")), ("EncoderPosition", "slew"): ("rad", unece("C81")),
-                ("EncoderVelocity", "luff"): ("rad/s", unece("2A")), ("ReferenceAcceleration", "travel"):
-                ("m/s²", unece("MSK")), ("DriveSetpoint", "travel"): ("N", unece("NEW")),
-                ("DriveApplied", "luff"): ("N·m", unece("NU")), ("SimTime", None): ("s", unece("SEC"))}
+    expected = {
+        ("EncoderPosition", "travel"): ("m", unece("MTR")),
+        ("EncoderPosition", "slew"): ("rad", unece("C81")),
+        ("EncoderVelocity", "luff"): ("rad/s", unece("2A")),
+        ("ReferenceAcceleration", "travel"): ("m/s²", unece("MSK")),
+        ("DriveSetpoint", "travel"): ("N", unece("NEW")),
+        ("DriveApplied", "luff"): ("N·m", unece("NU")),
+        ("SimTime", None): ("s", unece("SEC")),
+    }
 
     async def session():
         async with client(url) as connection:
@@ -408,18 +414,22 @@ def test_the_documented_client_example_runs(servers):
 
 @pytest.mark.parametrize("case", ["bad URL", "missing scene", "port in use", "open to the network"])
 def test_bad_arguments_get_one_line_and_a_nonzero_exit(case, short_scene):
+    free = free_port()
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
-        port = taken.getsockname()[1]
+        busy = taken.getsockname()[1]
         scene, endpoint, expected = {
-            "bad URL": (short_scene, "http://127.0.0.1:4840", "error: --endpoint http://127.0.0.1:4840: expected "
-                        "opc.tcp://HOST:PORT"),
-            "missing scene": ("no_such_scene", "opc.tcp://127.0.0.1:4840", "error: no_such_scene: scene file not found"),
-            "port in use": (short_scene, f"opc.tcp://127.0.0.1:{port}", f"error: --endpoint opc.tcp://127.0.0.1:{port}: "
-                            f"cannot listen (port {port} is in use)"),
-            "open to the network": (short_scene, "opc.tcp://0.0.0.0:4840", "error: opc.tcp://0.0.0.0:4840: an endpoint "
-                                    "other than loopback needs --users FILE"),
+            "bad URL": (short_scene, f"http://127.0.0.1:{free}",
+                        f"error: --endpoint http://127.0.0.1:{free}: expected opc.tcp://HOST:PORT"),
+            "missing scene": ("no_such_scene", f"opc.tcp://127.0.0.1:{free}",
+                              "error: no_such_scene: scene file not found"),
+            "port in use": (short_scene, f"opc.tcp://127.0.0.1:{busy}",
+                            f"error: --endpoint opc.tcp://127.0.0.1:{busy}: cannot listen "
+                            f"(port {busy} is in use)"),
+            "open to the network": (short_scene, f"opc.tcp://0.0.0.0:{free}",
+                                    f"error: opc.tcp://0.0.0.0:{free}: an endpoint other than loopback needs "
+                                    "--users FILE"),
         }[case]
         result = subprocess.run(serve_command(scene, "--endpoint", endpoint), cwd=ROOT, env=environment(),
                                 capture_output=True, text=True, timeout=60)

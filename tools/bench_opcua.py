@@ -188,12 +188,13 @@ def main() -> None:
     finally:
         server.stop()
     latency = figures["latency"]
-    print(f"real-time mode, {1 / figures['period']:g} Hz, speed 1, {args.seconds:g} s of a PLC writing every period")
+    print(f"real-time mode, {1 / figures['period']:g} Hz, speed 1, {args.seconds:g} s of a PLC writing "
+          "every period")
     print(f"  control period jitter over {figures['ticks']} periods: std {figures['std']:.3f} ms, "
           f"largest deviation {figures['max']:.2f} ms; overruns {figures['overruns']}, "
           f"watchdog tripped: {figures['tripped']}")
-    print(f"  setpoint write -> DriveApplied read back ({len(latency)} probes): median {np.median(latency):.2f} ms, "
-          f"p95 {np.percentile(latency, 95):.2f} ms")
+    print(f"  setpoint write -> DriveApplied read back ({len(latency)} probes): "
+          f"median {np.median(latency):.2f} ms, p95 {np.percentile(latency, 95):.2f} ms")
 
 
 if __name__ == "__main__":

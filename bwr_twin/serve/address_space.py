@@ -127,7 +127,8 @@ class AddressSpace:
         """Create Objects/Reclaimer with its variables and `methods` (name -> async handler)."""
         space = cls(server, await server.register_namespace(NAMESPACE_URI))
         ns = space.namespace
-        reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns), ua.QualifiedName("Reclaimer", ns))
+        reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
+                                                          ua.QualifiedName("Reclaimer", ns))
         for variable in MACHINE_VARIABLES:
             await space._add_variable(reclaimer, variable, None)
         for axis in AXES:
@@ -155,11 +156,12 @@ class AddressSpace:
                                          _initial(variable.variant), variable.variant)
         unit = unit_of(variable, axis)
         meaning = f"{variable.meaning}, {unit}" if unit else variable.meaning
-        await node.write_attribute(ua.AttributeIds.Description, ua.DataValue(ua.Variant(ua.LocalizedText(meaning))))
-        if unit:
-            await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns), ua.QualifiedName("EngineeringUnits", 0),
-                                    eu_information(unit), ua.VariantType.ExtensionObject,
-                                    ua.NodeId(ua.ObjectIds.EUInformation))
+        description = ua.DataValue(ua.Variant(ua.LocalizedText(meaning)))
+        await node.write_attribute(ua.AttributeIds.Description, description)
+        if unit:  # the standard property, browse name in namespace 0
+            await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns),
+                                    ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
+                                    ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
         if variable.writable:
             await node.set_writable()
         self.nodes[variable.name, axis] = node

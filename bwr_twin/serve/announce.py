@@ -19,7 +19,8 @@ def exposure_lines(*, url: str, host: str, port: int, mode: str, policies: list[
         lines.append(f"warning: {url} serves the twin on every network interface, to anyone who can reach "
                      f"this machine: {addresses}")
     elif not is_loopback(host):
-        lines.append(f"warning: the twin is served on {host}, reachable from other machines on that network: {url}")
+        lines.append(f"warning: the twin is served on {host}, reachable from other machines on that network: "
+                     f"{url}")
     reach = "loopback: this machine only" if is_loopback(host) else "other machines can connect"
     lines += [
         f"endpoint: {url} ({reach})",

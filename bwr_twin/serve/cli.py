@@ -29,19 +29,21 @@ DEFAULT_PORT = 4840  # OPC UA's registered port, when the URL gives none
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bwr_twin.serve", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. paper_individual_gains")
-    parser.add_argument("--endpoint", default=DEFAULT_ENDPOINT, help=f"opc.tcp://HOST:PORT (default {DEFAULT_ENDPOINT}, "
-                        "this machine only)")
+    parser.add_argument("--endpoint", default=DEFAULT_ENDPOINT,
+                        help=f"opc.tcp://HOST:PORT (default {DEFAULT_ENDPOINT}, this machine only)")
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--lockstep", action="store_true", help="the client advances the twin with Step(n) (default)")
+    mode.add_argument("--lockstep", action="store_true",
+                      help="the client advances the twin with Step(n) (default)")
     mode.add_argument("--realtime", action="store_true", help="simulated time follows the wall clock once Start "
                       "is called")
-    parser.add_argument("--speed", type=float, default=1.0, help="real-time mode: simulated seconds per wall-clock "
-                        "second (default 1)")
+    parser.add_argument("--speed", type=float, default=1.0,
+                        help="real-time mode: simulated seconds per wall-clock second (default 1)")
     parser.add_argument("--watchdog-periods", type=int, default=DEFAULT_WATCHDOG_PERIODS, help="real-time mode: "
                         "control periods without a DriveSetpoint write before the drives go to zero; 0: no "
                         f"watchdog (default {DEFAULT_WATCHDOG_PERIODS})")
-    parser.add_argument("--users", type=Path, help="users file (python -m bwr_twin.serve.passwd NAME makes a line): "
-                        "writes and method calls need one of them; anonymous sessions read only")
+    parser.add_argument("--users", type=Path,
+                        help="users file (python -m bwr_twin.serve.passwd NAME makes a line): writes and method "
+                        "calls need one of them; anonymous sessions read only")
     parser.add_argument("--certificate", type=Path, help="server certificate (DER or PEM): Basic256Sha256, signed "
                         "and encrypted; needed, with --users, on any address but loopback")
     parser.add_argument("--private-key", type=Path, help="the certificate's private key (PEM)")
@@ -70,9 +72,9 @@ def _serve(args: argparse.Namespace) -> int:
     from bwr_twin.serve.server import Options, serve
     from bwr_twin.shipped import find_scene
 
-    _check_listenable(url, host, port)
     check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
                   private_key=args.private_key)
+    _check_listenable(url, host, port)
     if args.users is not None:
         load_users(args.users)  # a bad line stops here, before any work
     scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))

@@ -46,7 +46,8 @@ def load_users(path: Path) -> dict[str, str]:
     try:
         lines = path.read_text().splitlines()
     except (OSError, UnicodeDecodeError) as exc:
-        raise SecurityError(f"{path}: cannot read the users file ({exc.strerror if isinstance(exc, OSError) else exc})")
+        reason = exc.strerror if isinstance(exc, OSError) else exc
+        raise SecurityError(f"{path}: cannot read the users file ({reason})") from None
     users: dict[str, str] = {}
     for number, line in enumerate(lines, 1):
         line = line.strip()
@@ -131,7 +132,8 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
             await server.load_certificate(str(certificate))
             await server.load_private_key(str(private_key))
         except Exception as exc:  # cryptography's errors have no common base
-            raise SecurityError(f"{certificate}, {private_key}: not a certificate and its private key ({exc})") from None
+            raise SecurityError(f"{certificate}, {private_key}: not a certificate and its private key "
+                                f"({exc})") from None
     if certificate is not None:
         policies, names = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt], ["Basic256Sha256 SignAndEncrypt"]
     else:
