@@ -102,7 +102,7 @@ class Clock:
             return _status(ua.StatusCodes.BadNotSupported)
         if self.running:
             return []
-        if self._finished() or self.watchdog_tripped:
+        if self._finished() or self.watchdog_tripped or self._lock.locked():  # the last: a Step under way
             return _status(ua.StatusCodes.BadInvalidState)
         self.running = True
         self._task = asyncio.create_task(self._run())
@@ -167,11 +167,11 @@ class Clock:
             if self.watchdog_periods and twin.k - self._fed_at >= self.watchdog_periods:
                 await self._trip()
             twin.advance(self.setpoint)
-            if time.perf_counter() > due + wall_period:
-                self.overruns += 1
             if self._finished():
                 self.running = False
             await self._after_periods()
+            if time.perf_counter() > due + wall_period:  # computed and published after the next was due
+                self.overruns += 1  # published with the next period
 
     async def _trip(self) -> None:
         if self.watchdog_tripped:
@@ -199,8 +199,8 @@ class Clock:
             self.running = False
             self._log(f"error: the simulation diverged ({self.twin.failure}); Reset starts the path again")
         elif self.twin.done:
-            self._log(f"path completed at SimTime {self.twin.reading['SimTime'] + self.twin.period:g} s; "
-                      "Reset starts it again")
+            self._log(f"path completed: its last control period, at SimTime {self.twin.reading['SimTime']:g} s, "
+                      "advanced; Reset starts it again")
             if self._on_done is not None:
                 self._on_done(self.twin)
 
