@@ -20,7 +20,9 @@ HOLD = (0.0, 0.0, 490500.0)  # N, N m, N m: the luff's static gravity torque
 
 
 async def run(url: str, periods: int) -> list[float]:
-    async with Client(url) as client:
+    client = Client(url)
+    client.session_timeout = 600_000  # ms: what the server grants; asking for more only draws a warning
+    async with client:
         ns = await client.get_namespace_index(NAMESPACE)
         reclaimer = await client.nodes.objects.get_child(f"{ns}:Reclaimer")
 

@@ -69,7 +69,7 @@ AXIS_VARIABLES = (
     Variable("ReferencePosition", D, ("m", "rad"), "the path's position at SimTime"),
     Variable("ReferenceVelocity", D, ("m/s", "rad/s"), "the path's velocity at SimTime"),
     Variable("ReferenceAcceleration", D, ("m/s²", "rad/s²"), "the path's acceleration at SimTime"),
-    Variable("DriveSetpoint", D, ("N", "N·m"), "drive force the PLC commands, held from the next period on",
+    Variable("DriveSetpoint", D, ("N", "N·m"), "drive force the PLC commands, held over the periods advanced after the write",
              writable=True),
     Variable("DriveApplied", D, ("N", "N·m"), "drive force applied over the last period (within the rating)"),
     Variable("AtLimit", B, None, "limit switch: the joint at or beyond its operating envelope or end stop"),

@@ -20,7 +20,7 @@ from asyncua.server.user_managers import UserManager
 from bwr_twin.errors import BwrError
 
 SCHEME = "pbkdf2_sha256"
-ITERATIONS = 100_000  # about 50 ms a check here: cheap for a login, dear for guessing
+ITERATIONS = 100_000  # about 54 ms a check here: cheap for a login, dear for guessing
 
 
 class SecurityError(BwrError):
