@@ -120,7 +120,6 @@ class AddressSpace:
     def __init__(self, server: Server, namespace: int):
         self.server, self.namespace = server, namespace
         self.nodes: dict[tuple[str, str | None], Node] = {}  # (variable, axis or None) -> node
-        self.methods: dict[str, Node] = {}
 
     @classmethod
     async def build(cls, server: Server, methods: Mapping[str, Callable]) -> AddressSpace:
@@ -146,7 +145,6 @@ class AddressSpace:
                                               handler, inputs, outputs)
             await node.write_attribute(ua.AttributeIds.Description,
                                        ua.DataValue(ua.Variant(ua.LocalizedText(METHODS[name]))))
-            space.methods[name] = node
         return space
 
     async def _add_variable(self, parent: Node, variable: Variable, axis: str | None) -> None:
