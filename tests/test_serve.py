@@ -31,7 +31,7 @@ from bwr_twin.sim.lockstep import Lockstep
 AXES = ("travel", "slew", "luff")
 STARTUP_TIMEOUT = 40.0  # s: imports, the scene, asyncua's standard address space, on a busy machine
 CALL_TIMEOUT = 30.0  # s: any one client session below
-PID_PERIODS = 500  # the first 5 s of the short path: travel and slew accelerate, their largest errors
+PID_PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
 USER, PASSWORD = "plc", "s3cret"
 
 
@@ -241,10 +241,10 @@ def test_a_pid_over_the_wire_tracks_the_path_as_it_does_in_process(servers, shor
 
 def test_two_identical_sessions_read_identical_encoders(servers):
     url = servers["lockstep"].ready()
-    first = run(pid_session(url, periods=150))
-    again = run(pid_session(url, periods=150))  # after Reset on the same server
+    first = run(pid_session(url, periods=100))
+    again = run(pid_session(url, periods=100))  # after Reset on the same server
     # Another server process, in real-time mode with its clock stopped: Step drives the same machine.
-    fresh = run(pid_session(servers["guarded"].ready(), periods=150, password=PASSWORD))
+    fresh = run(pid_session(servers["guarded"].ready(), periods=100, password=PASSWORD))
     for session in (again, fresh):
         np.testing.assert_array_equal(session[0], first[0])
     assert np.ptp(first[0][:, 0]) > 0  # the machine moved: equal readings are not equal zeros
@@ -406,10 +406,10 @@ def test_writes_need_a_user_when_users_are_configured(servers, users_file):
 
 def test_the_documented_client_example_runs(servers):
     result = subprocess.run([sys.executable, str(ROOT / "examples" / "opcua_client.py"), "--url",
-                             servers["lockstep"].ready(), "--periods", "100"],
+                             servers["lockstep"].ready(), "--periods", "50"],
                             capture_output=True, text=True, timeout=60, env=environment())
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("largest encoder error over 100 periods: travel ")
+    assert result.stdout.startswith("largest encoder error over 50 periods: travel ")
 
 
 @pytest.mark.parametrize("case", ["bad URL", "missing scene", "port in use", "open to the network"])

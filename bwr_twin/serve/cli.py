@@ -65,19 +65,22 @@ def _serve(args: argparse.Namespace) -> int:
         raise ServeError(f"--speed {args.speed:g}: must lie in (0, 1000]")
     if args.watchdog_periods < 0:
         raise ServeError(f"--watchdog-periods {args.watchdog_periods}: must be >= 0 (0: no watchdog)")
+    from bwr_twin.shipped import find_scene
+
+    scene_path = find_scene(args.scene)  # before the imports of asyncua and MuJoCo: bad input answers at once
+
     from bwr_twin.config.scene import load_scene
     from bwr_twin.run import scene_overrides
     from bwr_twin.serve.announce import is_loopback
     from bwr_twin.serve.security import check_options, load_users
     from bwr_twin.serve.server import Options, serve
-    from bwr_twin.shipped import find_scene
 
     check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
                   private_key=args.private_key)
     _check_listenable(url, host, port)
     if args.users is not None:
         load_users(args.users)  # a bad line stops here, before any work
-    scene = load_scene(find_scene(args.scene), scene_overrides(args.model, args.seed))
+    scene = load_scene(scene_path, scene_overrides(args.model, args.seed))
     options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
                       speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
                       certificate=args.certificate, private_key=args.private_key, out=args.out,
