@@ -6,6 +6,7 @@ the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.m
     clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
     security.py       users file, password hashes, who may write; policies per endpoint
     announce.py       what the server prints it exposes
+    results.py        --out: a completed path's run directory
     server.py         the asyncua server around them, start to clean stop
     cli.py            the command line
     passwd.py         a users-file line: python -m bwr_twin.serve.passwd NAME
