@@ -11,7 +11,10 @@ Starts `python -m bwr_twin.serve SCENE` twice on free loopback ports, and prints
     writing every period: the jitter of the server's control period (the spacing of SimTime's
     source timestamps against 10 ms: standard deviation and largest deviation, ms), overruns,
     watchdog trips, and the round trip from a setpoint write to the first read of DriveApplied
-    that reflects it (median and 95th percentile, ms, a probe every 20 periods).
+    that reflects it (median and 95th percentile, ms, a probe every 20 periods);
+(c) real-time mode at a speed the machine cannot follow (`--overload-speed`, no watchdog), for
+    `--overload-seconds`: simulated seconds per wall-clock second, overruns, and the slowest and
+    median answer to a client reading SimTime meanwhile (ms): the server must keep answering.
 """
 
 from __future__ import annotations
@@ -161,11 +164,33 @@ async def realtime(url: str, seconds: float) -> dict[str, object]:
             "overruns": overruns, "tripped": tripped, "latency": np.array(latencies) * 1e3}
 
 
+async def overload(url: str, seconds: float) -> dict[str, float]:
+    """Reads of SimTime while the clock runs behind: their latencies, and how far time got."""
+    async with Client(url) as client:
+        ns, reclaimer, axis, machine = await nodes(client)
+        sim_time, overruns = await machine("SimTime"), await machine("Overruns")
+        period = await (await machine("ControlPeriod")).read_value()
+        await client.write_values(await axis("DriveSetpoint"), doubles(HOLD))
+        await reclaimer.call_method(f"{ns}:Start")
+        latencies, started = [], time.perf_counter()
+        while time.perf_counter() - started < seconds:
+            sent = time.perf_counter()
+            await sim_time.read_value()
+            latencies.append(time.perf_counter() - sent)
+        wall = time.perf_counter() - started
+        await reclaimer.call_method(f"{ns}:Stop")
+        late, reached = await overruns.read_value(), await sim_time.read_value()
+    return {"rate": reached / wall, "overruns": late, "periods": round(reached / period),
+            "worst": max(latencies) * 1e3, "median": np.median(latencies) * 1e3}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     parser.add_argument("--periods", type=int, default=2000, help="lockstep: periods of each loop")
     parser.add_argument("--seconds", type=float, default=10.0, help="real time: wall-clock seconds of the PLC")
+    parser.add_argument("--overload-speed", type=float, default=200.0)
+    parser.add_argument("--overload-seconds", type=float, default=5.0)
     args = parser.parse_args()
     scene = str(find_scene(args.scene))
 
@@ -195,6 +220,15 @@ def main() -> None:
           f"watchdog tripped: {figures['tripped']}")
     print(f"  setpoint write -> DriveApplied read back ({len(latency)} probes): "
           f"median {np.median(latency):.2f} ms, p95 {np.percentile(latency, 95):.2f} ms")
+
+    server = Server(scene, "--realtime", "--speed", f"{args.overload_speed:g}", "--watchdog-periods", "0")
+    try:
+        behind = asyncio.run(overload(server.url, args.overload_seconds))
+    finally:
+        server.stop()
+    print(f"real-time mode at speed {args.overload_speed:g}, {args.overload_seconds:g} s: "
+          f"{behind['rate']:.1f} simulated s per s, {behind['overruns']} overruns in {behind['periods']} periods; "
+          f"a read of SimTime meanwhile: median {behind['median']:.2f} ms, slowest {behind['worst']:.1f} ms")
 
 
 if __name__ == "__main__":
