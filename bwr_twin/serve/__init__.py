@@ -1,0 +1,23 @@
+"""The twin as an OPC UA server: one run of a scene is the machine, a PLC (the client) computes
+the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.md.
+
+    twin.py           the machine: one run, advanced a control period at a time
+    address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
+    clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
+    security.py       users file, password hashes, who may write; policies per endpoint
+    announce.py       what the server prints it exposes
+    results.py        --out: a completed path's run directory
+    server.py         the asyncua server around them, start to clean stop
+    cli.py            the command line
+    passwd.py         a users-file line: python -m bwr_twin.serve.passwd NAME
+"""
+
+from bwr_twin.errors import BwrError
+
+# Kept here, light, so that the command line checks its arguments before importing asyncua and MuJoCo.
+LOCKSTEP, REALTIME = "lockstep", "realtime"
+DEFAULT_WATCHDOG_PERIODS = 10  # control periods without a DriveSetpoint write before the drives stop
+
+
+class ServeError(BwrError):
+    """An endpoint or option the server cannot serve."""

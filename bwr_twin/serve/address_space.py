@@ -1,0 +1,192 @@
+"""The OPC UA address space of the twin: `Objects/Reclaimer/...`, the contract of docs/opcua.md.
+
+Every variable is one row of `MACHINE_VARIABLES` or `AXIS_VARIABLES`: its browse name, type,
+unit and meaning. The server publishes a variable from the value of the same name in the
+readings it is given (`AddressSpace.publish`), so a new machine-level variable is one row here
+and one value in the readings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from datetime import datetime, timezone
+
+from asyncua import Node, Server, ua
+
+from bwr_twin.model.machine import AXES
+
+NAMESPACE_URI = "urn:bwr_twin:reclaimer"
+UNECE_URI = "http://www.opcfoundation.org/UA/units/un/cefact"  # OPC UA Part 8: UNECE Recommendation 20 codes
+
+# Unit symbol -> (UNECE common code, description).
+UNITS = {
+    "m": ("MTR", "metre"),
+    "rad": ("C81", "radian"),
+    "m/s": ("MTS", "metre per second"),
+    "rad/s": ("2A", "radian per second"),
+    "m/s²": ("MSK", "metre per second squared"),
+    "rad/s²": ("2B", "radian per second squared"),
+    "N": ("NEW", "newton"),
+    "N·m": ("NU", "newton metre"),
+    "s": ("SEC", "second"),
+    "t/h": ("E18", "tonne per hour"),
+}
+LINEAR, ANGULAR = "linear", "angular"
+AXIS_KIND = {"travel": LINEAR, "slew": ANGULAR, "luff": ANGULAR}
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One variable of the contract.
+
+    `unit`: a symbol of UNITS, or for an axis variable a (linear, angular) pair of them, or None.
+    """
+
+    name: str
+    variant: ua.VariantType
+    unit: str | tuple[str, str] | None
+    meaning: str
+    writable: bool = False
+
+
+D, B, S, U = ua.VariantType.Double, ua.VariantType.Boolean, ua.VariantType.String, ua.VariantType.UInt32
+
+MACHINE_VARIABLES = (
+    Variable("SimTime", D, "s", "simulated time of the encoder reading"),
+    Variable("ControlPeriod", D, "s", "the control period: the time one Step advances"),
+    Variable("PeriodsLeft", U, None, "control periods left on the path; 0 at its end"),
+    Variable("Running", B, None, "real-time mode: the clock runs (Start); false in lockstep mode"),
+    Variable("Mode", S, None, '"lockstep" or "realtime"'),
+    Variable("WatchdogTripped", B, None, "real-time mode: no DriveSetpoint write within the watchdog's "
+             "periods; drives at zero until Reset"),
+    Variable("Overruns", U, None, "real-time mode: control periods computed later than the next one was due"),
+)
+
+AXIS_VARIABLES = (
+    Variable("EncoderPosition", D, ("m", "rad"), "encoder position, quantised to the scene's resolution"),
+    Variable("EncoderVelocity", D, ("m/s", "rad/s"), "encoder velocity, as the scene's encoders give it"),
+    Variable("ReferencePosition", D, ("m", "rad"), "the path's position at SimTime"),
+    Variable("ReferenceVelocity", D, ("m/s", "rad/s"), "the path's velocity at SimTime"),
+    Variable("ReferenceAcceleration", D, ("m/s²", "rad/s²"), "the path's acceleration at SimTime"),
+    Variable("DriveSetpoint", D, ("N", "N·m"), "drive force the PLC commands, held over the periods advanced after the write",
+             writable=True),
+    Variable("DriveApplied", D, ("N", "N·m"), "drive force applied over the last period (within the rating)"),
+    Variable("AtLimit", B, None, "limit switch: the joint at or beyond its operating envelope or end stop"),
+)
+
+METHODS = {
+    "Start": "real-time mode: start the clock",
+    "Stop": "real-time mode: stop the clock; the machine freezes",
+    "Reset": "back to the path's start: setpoints zero, watchdog and overruns cleared, clock stopped",
+    "Step": "Step(n UInt32) -> SimTime: advance n control periods under the current setpoints (not while Running)",
+}
+
+
+def axis_name(axis: str) -> str:
+    """'travel' -> 'Travel', the browse name of an axis's object."""
+    return axis.capitalize()
+
+
+def unit_of(variable: Variable, axis: str | None = None) -> str | None:
+    """The unit symbol of a variable (of an axis: linear or angular)."""
+    if isinstance(variable.unit, tuple):
+        return variable.unit[0 if AXIS_KIND[axis] == LINEAR else 1]
+    return variable.unit
+
+
+def eu_information(symbol: str) -> ua.EUInformation:
+    """EUInformation of a unit symbol of UNITS, UnitId from its UNECE code (OPC UA Part 8, 5.6.3)."""
+    code, description = UNITS[symbol]
+    unit_id = 0
+    for character in code:
+        unit_id = unit_id << 8 | ord(character)
+    return ua.EUInformation(NamespaceUri=UNECE_URI, UnitId=unit_id, DisplayName=ua.LocalizedText(symbol),
+                            Description=ua.LocalizedText(description))
+
+
+def node_path(variable: str, axis: str | None = None) -> str:
+    """'Reclaimer/Travel/DriveSetpoint': a node's browse path under Objects, as the docs give it."""
+    return f"Reclaimer/{axis_name(axis)}/{variable}" if axis else f"Reclaimer/{variable}"
+
+
+def _initial(variant: ua.VariantType):
+    return {D: 0.0, B: False, S: "", U: 0}[variant]
+
+
+class AddressSpace:
+    """The twin's nodes on `server`, and the publishing of readings into them."""
+
+    def __init__(self, server: Server, namespace: int):
+        self.server, self.namespace = server, namespace
+        self.nodes: dict[tuple[str, str | None], Node] = {}  # (variable, axis or None) -> node
+
+    @classmethod
+    async def build(cls, server: Server, methods: Mapping[str, Callable]) -> AddressSpace:
+        """Create Objects/Reclaimer with its variables and `methods` (name -> async handler)."""
+        space = cls(server, await server.register_namespace(NAMESPACE_URI))
+        ns = space.namespace
+        reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
+                                                          ua.QualifiedName("Reclaimer", ns))
+        for variable in MACHINE_VARIABLES:
+            await space._add_variable(reclaimer, variable, None)
+        for axis in AXES:
+            folder = await reclaimer.add_object(ua.NodeId(f"Reclaimer.{axis_name(axis)}", ns),
+                                                ua.QualifiedName(axis_name(axis), ns))
+            for variable in AXIS_VARIABLES:
+                await space._add_variable(folder, variable, axis)
+        step_argument = ua.Argument(Name="n", DataType=ua.NodeId(ua.ObjectIds.UInt32), ValueRank=-1,
+                                    Description=ua.LocalizedText("control periods to advance, >= 1"))
+        sim_time = ua.Argument(Name="SimTime", DataType=ua.NodeId(ua.ObjectIds.Double), ValueRank=-1,
+                               Description=ua.LocalizedText("simulated time after the step, s"))
+        for name, handler in methods.items():
+            inputs, outputs = ([step_argument], [sim_time]) if name == "Step" else ([], [])
+            node = await reclaimer.add_method(ua.NodeId(f"Reclaimer.{name}", ns), ua.QualifiedName(name, ns),
+                                              handler, inputs, outputs)
+            await node.write_attribute(ua.AttributeIds.Description,
+                                       ua.DataValue(ua.Variant(ua.LocalizedText(METHODS[name]))))
+        return space
+
+    async def _add_variable(self, parent: Node, variable: Variable, axis: str | None) -> None:
+        ns = self.namespace
+        node_id = node_path(variable.name, axis).replace("/", ".")
+        node = await parent.add_variable(ua.NodeId(node_id, ns), ua.QualifiedName(variable.name, ns),
+                                         _initial(variable.variant), variable.variant)
+        unit = unit_of(variable, axis)
+        meaning = f"{variable.meaning}, {unit}" if unit else variable.meaning
+        description = ua.DataValue(ua.Variant(ua.LocalizedText(meaning)))
+        await node.write_attribute(ua.AttributeIds.Description, description)
+        if unit:  # the standard property, browse name in namespace 0
+            await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns),
+                                    ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
+                                    ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
+        if variable.writable:
+            await node.set_writable()
+        self.nodes[variable.name, axis] = node
+
+    def writable(self) -> list[str]:
+        """Browse paths of the nodes a client may write."""
+        return [node_path(v.name, a) for v in AXIS_VARIABLES if v.writable for a in AXES] + [
+            node_path(v.name) for v in MACHINE_VARIABLES if v.writable]
+
+    async def publish(self, readings: Mapping[str, object]) -> None:
+        """Write every variable found in `readings` (name -> value; an axis variable's value a
+        (3,) sequence in AXES order), stamped with the wall-clock time."""
+        now = datetime.now(timezone.utc)
+        write = self.server.write_attribute_value
+        for name, value in readings.items():
+            if (name, None) in self.nodes:
+                variable = _VARIABLES[name]
+                await write(self.nodes[name, None].nodeid, _data_value(value, variable.variant, now))
+            elif (name, AXES[0]) in self.nodes:
+                variant = _VARIABLES[name].variant
+                for axis, axis_value in zip(AXES, value):
+                    await write(self.nodes[name, axis].nodeid, _data_value(axis_value, variant, now))
+
+
+_VARIABLES = {v.name: v for v in MACHINE_VARIABLES + AXIS_VARIABLES}
+_PYTHON = {D: float, B: bool, S: str, U: int}
+
+
+def _data_value(value: object, variant: ua.VariantType, now: datetime) -> ua.DataValue:
+    return ua.DataValue(ua.Variant(_PYTHON[variant](value), variant), SourceTimestamp=now, ServerTimestamp=now)

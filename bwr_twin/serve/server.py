@@ -1,0 +1,111 @@
+"""The OPC UA server around the twin: its address space, clock and security, from start to a
+clean stop on Ctrl-C or SIGTERM."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import errno
+import logging
+import signal
+from dataclasses import dataclass
+from pathlib import Path
+
+from asyncua import Server
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.model.machine import AXES
+from bwr_twin.serve import LOCKSTEP, ServeError
+from bwr_twin.serve.address_space import METHODS, NAMESPACE_URI, AddressSpace
+from bwr_twin.serve.announce import exposure_lines, is_loopback
+from bwr_twin.serve.clock import Clock
+from bwr_twin.serve.results import RunWriter
+from bwr_twin.serve.security import secure
+from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.plant import mujoco_warnings
+
+APPLICATION_URI = "urn:bwr_twin:serve"  # a server certificate's subjectAltName URI must be this
+
+
+@dataclass(frozen=True)
+class Options:
+    """The command line's choices; `speed` simulated seconds per wall-clock second."""
+
+    url: str
+    host: str
+    port: int
+    mode: str = LOCKSTEP
+    speed: float = 1.0
+    watchdog_periods: int = 10
+    users: Path | None = None
+    certificate: Path | None = None
+    private_key: Path | None = None
+    out: Path | None = None
+    overwrite: bool = False
+    plots: bool = True
+
+
+async def serve(scene: Scene, options: Options) -> int:
+    """Serve the twin until SIGTERM (returns 0) or SIGINT (raises KeyboardInterrupt once stopped)."""
+    stopped, interrupted = asyncio.Event(), []  # heard from here on; acted on once the server listens
+    loop = asyncio.get_running_loop()
+    loop.add_signal_handler(signal.SIGTERM, stopped.set)
+    loop.add_signal_handler(signal.SIGINT, lambda: (interrupted.append(True), stopped.set()))
+    writer = None
+    if options.out is not None:
+        writer = RunWriter(options.out, overwrite=options.overwrite, plots=options.plots,
+                           inputs=scene.input_files, log=_say)
+    logging.getLogger("asyncua").setLevel(logging.CRITICAL)  # the server reports in its own lines
+    twin = Twin(scene)
+    server = Server()
+    await server.init()
+    server.set_endpoint(options.url)
+    server.set_server_name("bwr_twin reclaimer")
+    await server.set_application_uri(APPLICATION_URI)
+    policies, access = await secure(server, url=options.url, loopback=is_loopback(options.host),
+                                    users_file=options.users, certificate=options.certificate,
+                                    private_key=options.private_key)
+    clock = Clock(twin, mode=options.mode, speed=options.speed, watchdog_periods=options.watchdog_periods,
+                  log=_say, on_done=writer)
+    clock.space = space = await AddressSpace.build(server, clock.methods())
+    for index, axis in enumerate(AXES):
+        server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
+    await clock.publish(setpoint=True)
+    try:
+        await server.start()
+    except OSError as exc:
+        reason = f"port {options.port} is in use" if exc.errno == errno.EADDRINUSE else exc.strerror or str(exc)
+        raise ServeError(f"--endpoint {options.url}: cannot listen ({reason})") from None
+
+    for line in exposure_lines(url=options.url, host=options.host, port=options.port, mode=_mode_line(clock),
+                               policies=policies, access=access, writable=space.writable(),
+                               methods=[f"Reclaimer/{m}" for m in METHODS], namespace=NAMESPACE_URI):
+        _say(line)
+    try:
+        with mujoco_warnings():  # a diverging run is reported by the twin, not printed by MuJoCo
+            await stopped.wait()
+    finally:
+        await clock.close()
+        if writer is not None:
+            await writer.finish()
+        await server.stop()
+    _say("server stopped")
+    if interrupted:
+        raise KeyboardInterrupt
+    return 0
+
+
+def _mode_line(clock: Clock) -> str:
+    twin = clock.twin
+    path = f"{twin.samples} control periods of {twin.period * 1e3:g} ms ({twin.loop.trajectory.duration:g} s path)"
+    if clock.mode == LOCKSTEP:
+        return f"lockstep: Step(n) advances the twin n control periods; {path}"
+    watchdog = (f"watchdog after {clock.watchdog_periods} periods without a DriveSetpoint write"
+                if clock.watchdog_periods else "no watchdog")
+    return f"realtime at {clock.speed:g}x the wall clock once Start is called; {path}; {watchdog}"
+
+
+def _say(line: str) -> None:
+    with contextlib.suppress(BrokenPipeError):  # a reader that went away does not stop the server
+        print(line, flush=True)
+

@@ -1,0 +1,446 @@
+"""The OPC UA server (`python -m bwr_twin.serve`) as a PLC sees it: a real asyncua client against
+the server in its own process, on a free loopback port, on the short path of conftest.
+
+A PID written here drives the twin over the wire exactly as it drives the same run in-process;
+two sessions of the same scene read the same encoders; the watchdog stops silent PLCs; users
+and units are what docs/opcua.md promises; bad arguments get one line.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import selectors
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from asyncua import Client, ua
+from conftest import ROOT, write_short_scene
+
+from bwr_twin.config.scene import load_scene
+from bwr_twin.serve.address_space import AXIS_VARIABLES, MACHINE_VARIABLES, METHODS, NAMESPACE_URI, unit_of
+from bwr_twin.serve.security import hash_password
+from bwr_twin.shipped import find_scene
+from bwr_twin.sim.lockstep import Lockstep
+
+AXES = ("travel", "slew", "luff")
+STARTUP_TIMEOUT = 40.0  # s: imports, the scene, asyncua's standard address space, on a busy machine
+CALL_TIMEOUT = 30.0  # s: any one client session below
+PID_PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
+USER, PASSWORD = "plc", "s3cret"
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def serve_command(scene, *options: str) -> list[str]:
+    return [sys.executable, "-m", "bwr_twin.serve", str(scene), *options]
+
+
+def environment() -> dict:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+
+
+class Launched:
+    """A server process on a free loopback port, started at once; `ready()` waits for it."""
+
+    def __init__(self, scene, *options: str, stop_signal=signal.SIGTERM):
+        self.url = f"opc.tcp://127.0.0.1:{free_port()}"
+        self.stop_signal, self.lines, self._pending = stop_signal, [], b""
+        self.process = subprocess.Popen(serve_command(scene, "--endpoint", self.url, *options), cwd=ROOT,
+                                        env=environment(), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        self.returncode, self.stderr = None, ""
+
+    def ready(self) -> str:
+        """The URL, once the server says it listens."""
+        self.wait_for("Ctrl-C stops", STARTUP_TIMEOUT)
+        return self.url
+
+    def wait_for(self, prefix: str, timeout: float) -> str:
+        """The first printed line starting with `prefix`, waiting up to `timeout` s for it."""
+        deadline = time.monotonic() + timeout
+        with selectors.DefaultSelector() as selector:
+            selector.register(self.process.stdout, selectors.EVENT_READ)
+            while not (found := [line for line in self.lines if line.startswith(prefix)]):
+                # Raw reads: a buffered readline would hide lines the selector has already seen.
+                if not selector.select(timeout=max(deadline - time.monotonic(), 0)):
+                    pytest.fail(f"no line {prefix!r} within {timeout:g} s: {self.lines}")
+                chunk = os.read(self.process.stdout.fileno(), 65536)
+                if not chunk:
+                    pytest.fail(f"the server exited: {self.process.wait()} {self.process.stderr.read().decode()}")
+                *complete, self._pending = (self._pending + chunk).split(b"\n")
+                self.lines.extend(line.decode() for line in complete)
+        return found[0]
+
+    def stop(self) -> int:
+        """Stop the server with its signal; its exit status."""
+        if self.returncode is None:
+            self.process.send_signal(self.stop_signal)
+            try:
+                out, err = self.process.communicate(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                out, err = self.process.communicate()
+            self.lines.extend((self._pending + out).decode().splitlines())
+            self.returncode, self.stderr = self.process.returncode, err.decode()
+        return self.returncode
+
+
+def run(coroutine):
+    return asyncio.run(asyncio.wait_for(coroutine, CALL_TIMEOUT))
+
+
+def client(url: str, password: str | None = None) -> Client:
+    """An asyncua client of the server at url: anonymous, or the users file's PLC with `password`."""
+    connection = Client(url)
+    if password is not None:
+        connection.set_user(USER)
+        connection.set_password(password)
+    return connection
+
+
+class Plc:
+    """A client's handles on the twin: per-axis nodes by variable name, machine nodes, methods."""
+
+    def __init__(self, client: Client, ns: int, reclaimer, axis: dict, machine: dict, methods: dict):
+        self.client, self.ns, self.reclaimer, self.axis, self.machine = client, ns, reclaimer, axis, machine
+        self.methods = methods
+
+    @classmethod
+    async def attach(cls, client: Client) -> Plc:
+        ns = await client.get_namespace_index(NAMESPACE_URI)
+        reclaimer = await client.nodes.objects.get_child(f"{ns}:Reclaimer")
+        axis = {v.name: [await reclaimer.get_child([f"{ns}:{a.capitalize()}", f"{ns}:{v.name}"]) for a in AXES]
+                for v in AXIS_VARIABLES}
+        machine = {v.name: await reclaimer.get_child(f"{ns}:{v.name}") for v in MACHINE_VARIABLES}
+        methods = {name: await reclaimer.get_child(f"{ns}:{name}") for name in METHODS}
+        return cls(client, ns, reclaimer, axis, machine, methods)
+
+    async def read(self, *names: str) -> list[np.ndarray]:
+        values = await self.client.read_values([n for name in names for n in self.axis[name]])
+        return [np.array(values[3 * i:3 * i + 3]) for i in range(len(names))]
+
+    async def value(self, name: str):
+        return await self.machine[name].read_value()
+
+    async def set_drives(self, forces) -> None:
+        await self.client.write_values(self.axis["DriveSetpoint"],
+                                       [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
+
+    async def call(self, method: str, *arguments):
+        return await self.reclaimer.call_method(self.methods[method], *arguments)
+
+    async def step(self, periods: int = 1):
+        return await self.call("Step", ua.Variant(periods, ua.VariantType.UInt32))
+
+
+class Pid:
+    """The PLC's per-axis PID with a holding force, in SI units (m, rad, N, N m)."""
+
+    def __init__(self, settings, period: float):
+        self.kp, self.ki, self.kd, self.hold = (np.array(getattr(settings, k)) for k in
+                                                ("kp", "ki", "kd", "holding_force"))
+        self.period, self.integral = period, np.zeros(3)
+
+    def __call__(self, q, qd, q_ref, qd_ref) -> np.ndarray:
+        error = q_ref - q
+        force = self.hold + self.kp * error + self.ki * self.integral + self.kd * (qd_ref - qd)
+        self.integral += error * self.period
+        return force
+
+
+@pytest.fixture(scope="module")
+def short_scene(tmp_path_factory):
+    return write_short_scene(tmp_path_factory.mktemp("serve"))
+
+
+@pytest.fixture(scope="module")
+def users_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("users") / "users.txt"
+    path.write_text(f"# the PLC\n{USER}:{hash_password(PASSWORD, iterations=1000)}\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("out") / "run"
+
+
+@pytest.fixture(scope="module")
+def servers(short_scene, users_file, run_dir):
+    """The two servers the tests share, started together: their start-up (about 3 s each, mostly
+    asyncua's standard address space) overlaps on the machine's two cores."""
+    launched = {
+        "lockstep": Launched(short_scene, "--out", str(run_dir), "--no-plots"),
+        # Real-time mode and users; Ctrl-C stops it (the last test). With its clock stopped, Step works.
+        "guarded": Launched(short_scene, "--realtime", "--watchdog-periods", "20", "--users", str(users_file),
+                            stop_signal=signal.SIGINT),
+    }
+    try:
+        yield launched
+    finally:
+        for name, server in launched.items():
+            status = server.stop()
+            assert "Traceback" not in server.stderr, server.stderr
+            assert status == (130 if server.stop_signal == signal.SIGINT else 0), (name, server.stderr)
+
+
+def pid_settings():
+    return load_scene(find_scene("pid_paper")).controller.settings  # 2 rad/s, the luff's holding torque
+
+
+async def pid_session(url: str, periods: int, password: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Reset, then the PID over the wire for `periods`: (periods, 3) encoder positions and
+    references as the PLC read them."""
+    async with client(url, password) as connection:
+        plc = await Plc.attach(connection)
+        await plc.call("Reset")
+        pid = Pid(pid_settings(), await plc.value("ControlPeriod"))
+        positions, references = [], []
+        for _ in range(periods):
+            q, qd, q_ref, qd_ref = await plc.read("EncoderPosition", "EncoderVelocity", "ReferencePosition",
+                                                  "ReferenceVelocity")
+            await plc.set_drives(pid(q, qd, q_ref, qd_ref))
+            await plc.step(1)
+            positions.append(q)
+            references.append(q_ref)
+        return np.array(positions), np.array(references)
+
+
+def test_a_pid_over_the_wire_tracks_the_path_as_it_does_in_process(servers, short_scene):
+    wire_q, wire_ref = run(pid_session(servers["lockstep"].ready(), PID_PERIODS))
+
+    # The same PID on the same run without a wire: the server must add nothing, not one bit.
+    loop = Lockstep([load_scene(short_scene)], nthread=1)
+    pid = Pid(pid_settings(), loop.period)
+    local_q = []
+    while loop.k < PID_PERIODS:
+        q, qd = loop.measure()
+        local_q.append(q[0].copy())
+        loop.advance(pid(q[0], qd[0], loop.q_desired[loop.k], loop.qd_desired[loop.k])[None])
+    np.testing.assert_array_equal(wire_q, np.array(local_q))
+    np.testing.assert_array_equal(wire_ref, loop.q_desired[:PID_PERIODS])
+
+    # Tracking: a PID at 2 rad/s holds this gentle start of the paper path within two encoder
+    # counts per axis (the encoders' resolution: 1.53 mm, 1.53 mrad, 0.76 mrad); measured: 2.8 mm,
+    # 0.85 mrad, 0 (the luff barely moves here). A PLC that broke the loop (a sign, a unit, a
+    # period of delay too many) drifts by metres and radians.
+    worst = np.abs(wire_ref - wire_q).max(axis=0)
+    resolution = np.array(load_scene(short_scene).encoders.resolution)
+    assert (worst <= 2 * resolution).all(), f"largest errors {worst} beyond two counts {2 * resolution}"
+    assert (worst[:2] > 0).all()  # travel and slew did move along the path
+
+
+def test_two_identical_sessions_read_identical_encoders(servers):
+    url = servers["lockstep"].ready()
+    first = run(pid_session(url, periods=100))
+    again = run(pid_session(url, periods=100))  # after Reset on the same server
+    # Another server process, in real-time mode with its clock stopped: Step drives the same machine.
+    fresh = run(pid_session(servers["guarded"].ready(), periods=100, password=PASSWORD))
+    for session in (again, fresh):
+        np.testing.assert_array_equal(session[0], first[0])
+    assert np.ptp(first[0][:, 0]) > 0  # the machine moved: equal readings are not equal zeros
+
+
+def test_stepping_past_the_path_end_is_refused_until_reset(servers, run_dir):
+    server = servers["lockstep"]
+    url = server.ready()
+
+    async def session():
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            left = await plc.value("PeriodsLeft")
+            with pytest.raises(ua.uaerrors.BadInvalidState):
+                await plc.step(left + 1)  # refused whole: nothing stepped
+            assert await plc.value("PeriodsLeft") == left
+            assert not run_dir.exists()  # --out: written only for a completed path
+            sim_time = await plc.step(left)  # Step's output: SimTime after it
+            assert await plc.value("PeriodsLeft") == 0
+            with pytest.raises(ua.uaerrors.BadInvalidState):
+                await plc.step(1)
+            with pytest.raises(ua.uaerrors.BadInvalidArgument):
+                await plc.step(0)
+            await plc.call("Reset")
+            assert await plc.value("SimTime") == 0.0
+            await plc.step(1)
+            return sim_time
+
+    assert run(session()) == pytest.approx(20.0)
+    server.wait_for(f"results in {run_dir}/", 30.0)
+    written = sorted(p.name for p in run_dir.iterdir())
+    assert written == [".bwr_twin", "metrics.json", "scene.json", "timeseries.csv"]
+
+
+def test_bad_writes_and_calls_get_their_status_codes(servers):
+    async def session():
+        async with client(servers["lockstep"].ready()) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            await plc.set_drives((1.0, 2.0, 3.0))
+            travel = plc.axis["DriveSetpoint"][0]
+            with pytest.raises(ua.uaerrors.BadOutOfRange):
+                await travel.write_value(ua.Variant(float("nan"), ua.VariantType.Double))
+            with pytest.raises(ua.uaerrors.BadTypeMismatch):
+                await travel.write_value(ua.Variant(5, ua.VariantType.Int64))
+            with pytest.raises(ua.uaerrors.BadUserAccessDenied):  # not writable: the contract's "read"
+                await plc.axis["EncoderPosition"][0].write_value(ua.Variant(0.0, ua.VariantType.Double))
+            for method in ("Start", "Stop"):
+                with pytest.raises(ua.uaerrors.BadNotSupported):  # lockstep mode: no clock
+                    await plc.call(method)
+            return (await plc.read("DriveSetpoint"))[0]
+
+    assert run(session()).tolist() == [1.0, 2.0, 3.0]  # the refused writes changed nothing
+
+
+def test_engineering_units_are_declared_on_every_variable(servers):
+    url = servers["lockstep"].ready()
+
+    def unece(code: str) -> int:  # OPC UA Part 8: the code's characters as the bytes of an Int32
+        return int.from_bytes(code.encode(), "big")
+
+    expected = {
+        ("EncoderPosition", "travel"): ("m", unece("MTR")),
+        ("EncoderPosition", "slew"): ("rad", unece("C81")),
+        ("EncoderVelocity", "luff"): ("rad/s", unece("2A")),
+        ("ReferenceAcceleration", "travel"): ("m/s²", unece("MSK")),
+        ("DriveSetpoint", "travel"): ("N", unece("NEW")),
+        ("DriveApplied", "luff"): ("N·m", unece("NU")),
+        ("SimTime", None): ("s", unece("SEC")),
+    }
+
+    async def session():
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            found = {}
+            for variable in AXIS_VARIABLES + MACHINE_VARIABLES:
+                for index, axis in enumerate(AXES if variable in AXIS_VARIABLES else (None,)):
+                    node = plc.axis[variable.name][index] if axis else plc.machine[variable.name]
+                    properties = {(await p.read_browse_name()).Name: p for p in await node.get_properties()}
+                    if unit_of(variable, axis) is None:
+                        assert "EngineeringUnits" not in properties
+                        continue
+                    eu = await properties["EngineeringUnits"].read_value()
+                    assert eu.NamespaceUri == "http://www.opcfoundation.org/UA/units/un/cefact"
+                    found[variable.name, axis] = (eu.DisplayName.Text, eu.UnitId)
+            return found
+
+    found = run(session())
+    with_units = [v for v in AXIS_VARIABLES + MACHINE_VARIABLES if v.unit is not None]
+    assert len(found) == sum(3 if v in AXIS_VARIABLES else 1 for v in with_units) >= 7 * 3 + 2
+    for key, unit in expected.items():
+        assert found[key] == unit, key
+
+
+def test_the_watchdog_stops_the_drives_of_a_silent_plc(servers):
+    hold = (0.0, 0.0, 490500.0)  # N, N m, N m: the luff's holding torque
+    server = servers["guarded"]
+
+    async def session():
+        async with client(server.ready(), PASSWORD) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            assert await plc.value("Mode") == "realtime"
+            await plc.set_drives(hold)
+            await plc.call("Start")
+            for _ in range(30):  # 0.3 s of a PLC writing every period
+                await plc.set_drives(hold)
+                await asyncio.sleep(0.01)
+            alive = await plc.value("WatchdogTripped"), (await plc.read("DriveApplied"))[0]
+            await asyncio.sleep(0.6)  # silent for 60 periods, three times the watchdog's
+            tripped = await plc.value("WatchdogTripped")
+            setpoints, applied = await plc.read("DriveSetpoint", "DriveApplied")
+            with pytest.raises(ua.uaerrors.BadInvalidState):  # latched: a fresh write does not clear it
+                await plc.set_drives(hold)
+            running = await plc.value("Running")
+            await plc.call("Reset")
+            return alive, tripped, setpoints, applied, running, await plc.value("WatchdogTripped")
+
+    (was_tripped, applied_alive), tripped, setpoints, applied, running, after_reset = run(session())
+    assert not was_tripped and applied_alive[2] == pytest.approx(hold[2])
+    assert tripped and running
+    assert (setpoints == 0).all() and (applied == 0).all()
+    assert not after_reset
+    assert server.wait_for("watchdog: no DriveSetpoint write for 20 control periods", 5.0)
+
+
+def test_writes_need_a_user_when_users_are_configured(servers, users_file):
+    server = servers["guarded"]
+    url = server.ready()
+
+    async def authenticated(password):
+        async with client(url, password) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            await plc.set_drives((1.0, 2.0, 3.0))
+            await plc.step(1)
+            return (await plc.read("DriveSetpoint"))[0], await plc.value("SimTime")
+
+    async def anonymous():
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            sim_time = await plc.value("SimTime")  # reading is open
+            with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+                await plc.set_drives((4.0, 5.0, 6.0))
+            with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+                await plc.step(1)
+            return sim_time, (await plc.read("DriveSetpoint"))[0]
+
+    written, stepped_to = run(authenticated(PASSWORD))
+    sim_time, kept = run(anonymous())
+    with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+        run(authenticated("wrong"))
+    assert written.tolist() == [1.0, 2.0, 3.0] and stepped_to == pytest.approx(0.01)
+    assert sim_time == stepped_to and kept.tolist() == [1.0, 2.0, 3.0]  # the anonymous session changed nothing
+    assert f"anonymous access: read only; writes and method calls need one of the 1 user(s) of {users_file}" \
+        in server.lines
+
+
+def test_the_documented_client_example_runs(servers):
+    result = subprocess.run([sys.executable, str(ROOT / "examples" / "opcua_client.py"), "--url",
+                             servers["lockstep"].ready(), "--periods", "50"],
+                            capture_output=True, text=True, timeout=60, env=environment())
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("largest encoder error over 50 periods: travel ")
+
+
+@pytest.mark.parametrize("case", ["bad URL", "missing scene", "port in use", "open to the network"])
+def test_bad_arguments_get_one_line_and_a_nonzero_exit(case, short_scene):
+    free = free_port()
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        busy = taken.getsockname()[1]
+        scene, endpoint, expected = {
+            "bad URL": (short_scene, f"http://127.0.0.1:{free}",
+                        f"error: --endpoint http://127.0.0.1:{free}: expected opc.tcp://HOST:PORT"),
+            "missing scene": ("no_such_scene", f"opc.tcp://127.0.0.1:{free}",
+                              "error: no_such_scene: scene file not found"),
+            "port in use": (short_scene, f"opc.tcp://127.0.0.1:{busy}",
+                            f"error: --endpoint opc.tcp://127.0.0.1:{busy}: cannot listen "
+                            f"(port {busy} is in use)"),
+            "open to the network": (short_scene, f"opc.tcp://0.0.0.0:{free}",
+                                    f"error: opc.tcp://0.0.0.0:{free}: an endpoint other than loopback needs "
+                                    "--users FILE"),
+        }[case]
+        result = subprocess.run(serve_command(scene, "--endpoint", endpoint), cwd=ROOT, env=environment(),
+                                capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(expected), result.stderr
+
+
+def test_ctrl_c_stops_the_server_with_status_130(servers):
+    """Ends the shared real-time server: the file's last test."""
+    guarded = servers["guarded"]
+    guarded.ready()
+    assert guarded.stop() == 130
+    assert guarded.stderr == "interrupted: server stopped\n"
+    assert guarded.lines[-1] == "server stopped"
