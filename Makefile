@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run dig test test-quick bench bench-replay bench-batch bench-gym clean
+.PHONY: setup run dig test test-quick bench bench-replay bench-batch bench-gym bench-opcua clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,9 @@ bench-batch: setup
 
 bench-gym: setup
 	$(PY) tools/bench_gym.py
+
+bench-opcua: setup
+	$(PY) tools/bench_opcua.py
 
 clean:
 	rm -rf out .pytest_cache

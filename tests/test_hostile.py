@@ -345,7 +345,7 @@ def test_drive_ratings_are_flagged_and_shown_in_the_batch_summary(tmp_path):
 
 @pytest.mark.browser
 def test_serving_every_interface_warns_with_the_real_addresses(tmp_path):
-    from bwr_twin.replay.exposure import network_addresses
+    from bwr_twin.exposure import network_addresses
 
     write_short_scene(tmp_path)
     assert cli("run", "short.toml", "--out", "o", "--no-plots", cwd=tmp_path).returncode == 0

@@ -444,3 +444,24 @@ def test_ctrl_c_stops_the_server_with_status_130(servers):
     assert guarded.stop() == 130
     assert guarded.stderr == "interrupted: server stopped\n"
     assert guarded.lines[-1] == "server stopped"
+
+
+def test_the_reclaim_rate_is_published_as_the_wheel_digs():
+    from test_stockpile import SHORT_DIG
+
+    from bwr_twin.control.registry import controller_class
+    from bwr_twin.serve.twin import Twin
+
+    twin = Twin(load_scene(find_scene("heavy_dig_pile"), SHORT_DIG))
+    loop = twin.loop
+    pid = controller_class("pid")(loop.controller_context(), [twin.scene.controller.settings])
+    rates = []
+    while not twin.done:
+        reading = twin.reading
+        command = pid.compute(reading["EncoderPosition"][None], reading["EncoderVelocity"][None],
+                              reading["ReferencePosition"], reading["ReferenceVelocity"],
+                              reading["ReferenceAcceleration"], None)
+        twin.advance(command[0])
+        rates.append(twin.reading["ReclaimRate"])
+    assert max(rates) > 1000.0  # t/h while cutting
+    assert rates[0] == 0.0 and rates[-1] == 0.0  # beside the pile at the start, lifted clear at the end

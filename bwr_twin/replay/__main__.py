@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bwr_twin.errors import BwrError
-from bwr_twin.replay.exposure import exposure_warning
+from bwr_twin.exposure import exposure_warning
 from bwr_twin.replay.recording import Plan, Recording
 from bwr_twin.results.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene

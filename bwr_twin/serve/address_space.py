@@ -61,6 +61,7 @@ MACHINE_VARIABLES = (
     Variable("WatchdogTripped", B, None, "real-time mode: no DriveSetpoint write within the watchdog's "
              "periods; drives at zero until Reset"),
     Variable("Overruns", U, None, "real-time mode: control periods computed later than the next one was due"),
+    Variable("ReclaimRate", D, "t/h", "what the bucket wheel reclaims, as the belt scale sees it; 0 without a stockpile"),
 )
 
 AXIS_VARIABLES = (

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from bwr_twin.replay.exposure import WILDCARDS, exposure_warning, network_addresses
+from bwr_twin.exposure import WILDCARDS, exposure_warning, network_addresses
 
 
 def is_loopback(host: str) -> bool:

@@ -41,7 +41,7 @@ class Twin:
         self._low = np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin)  # m, rad
         self._high = np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin)
         self._command = np.zeros((1, 3))  # N, N m: the drive forces held over a period
-        self.reading: dict[str, object] = {"DriveApplied": np.zeros(3)}
+        self.reading: dict[str, object] = {"DriveApplied": np.zeros(3), "ReclaimRate": 0.0}
         self._measure()
 
     @property
@@ -67,6 +67,8 @@ class Twin:
         self._command[0] = drive_force
         self.loop.advance(self._command)  # inside the server's mujoco_warnings(): MuJoCo prints nothing
         self.reading["DriveApplied"] = self.loop.plant.drive_force[0].copy()
+        if self.loop.reclaim is not None:
+            self.reading["ReclaimRate"] = float(self.loop.reclaim.rate[0])  # t/h
         if not self.loop.done:
             self._measure()
         self.reading["PeriodsLeft"] = self.periods_left

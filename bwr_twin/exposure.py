@@ -1,4 +1,5 @@
-"""Who else can see a replay: a server on anything but loopback says so, with its real addresses."""
+"""Who else can see a server of the twin (the replay, the OPC UA server): one on anything but
+loopback says so, with its real addresses."""
 
 from __future__ import annotations
 
