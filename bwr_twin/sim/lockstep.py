@@ -200,7 +200,7 @@ class Lockstep:
             self.plant.check_health()
         if k == self.samples:
             if self.reclaim is not None:
-                self.reclaim.finish()
+                self.reclaim.finish(k - 1)
             self._finish(k - 1, self._q, self._qd, self.plant.qvel)
             self.plant.check_health()
 

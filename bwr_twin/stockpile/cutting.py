@@ -19,6 +19,7 @@ import numpy as np
 from bwr_twin.model.machine import Wheel
 from bwr_twin.stockpile.surface import Surface
 
+CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again
 SIDE_SLOPE = 6.0  # rise (m) per metre beside the wheel's width of the envelope's flanks (80.5 deg)
 
 
@@ -42,6 +43,7 @@ class Cutter:
         self._top = float(surface.z.max())  # the heights only fall: nothing above this is ever cut
         self._x0, self._y0, self._h = float(surface.x[0]), float(surface.y[0]), surface.spacing
         self._nx, self._ny = len(surface.x), len(surface.y)
+        self._near: list[tuple | None] = [None] * runs  # per run: the cells near its wheel, and where it was
 
     def cut(self, cp: np.ndarray, slew: np.ndarray, runs: np.ndarray | None = None) -> Cut:
         """Lower every run's pile to its wheel's envelope, the wheel centred at cp (runs, 3) with
@@ -50,42 +52,69 @@ class Cutter:
         out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count))
         radius, half_width = self.wheel.radius, self.wheel.width / 2
         for run in range(count) if runs is None else runs:
-            bottom = cp[run, 2] - radius
-            if bottom >= self._top:
+            cx, cy, cz = cp[run]
+            if cz - radius >= self._top:
                 continue
-            cells = self._cells_under(cp[run], slew[run], half_width + (self._top - bottom) / SIDE_SLOPE)
+            cells = self._cells_near(run, cx, cy, slew[run], half_width + (self._top - cz + radius) / SIDE_SLOPE)
             if cells is None:
                 continue
-            rows, cols, along, across = cells
-            z = self.heights[run]
-            old = z[rows, cols]
-            span = np.sqrt(np.maximum(radius**2 - along * along, 0.0))
-            envelope = cp[run, 2] - span + SIDE_SLOPE * np.maximum(np.abs(across) - half_width, 0.0)
-            cutting = old > envelope
-            if not cutting.any():
+            flat, x, y = cells
+            cos, sin = np.cos(slew[run]), np.sin(slew[run])
+            dx, dy = x - cx, y - cy
+            along = dx * cos + dy * sin
+            across = dy * cos - dx * sin
+            envelope = np.abs(across)
+            envelope -= half_width
+            np.maximum(envelope, 0.0, out=envelope)
+            envelope *= SIDE_SLOPE
+            span = radius**2 - along * along
+            outside = span < 0.0  # beyond the wheel's rim along the boom: never cut
+            np.maximum(span, 0.0, out=span)
+            envelope -= np.sqrt(span, out=span)
+            envelope += cz
+            envelope[outside] = np.inf
+            z = self.heights[run].reshape(-1)  # a view: the run's heights, row by row
+            old = z[flat]
+            cutting = np.flatnonzero(old > envelope)
+            if not cutting.size:
                 continue
-            rows, cols, along, across, old = rows[cutting], cols[cutting], along[cutting], across[cutting], old[cutting]
-            new = envelope[cutting]
-            z[rows, cols] = new
+            flat, along, across, old, new = flat[cutting], along[cutting], across[cutting], old[cutting], envelope[cutting]
+            z[flat] = new
             removed = old - new
             weight = removed.sum()
             out.volume[run] = weight * self.surface.cell_area
             out.centroid[run] = (
-                np.dot(removed, self.surface.x[cols]) / weight,
-                np.dot(removed, self.surface.y[rows]) / weight,
+                np.dot(removed, x[cutting]) / weight,
+                np.dot(removed, y[cutting]) / weight,
                 np.dot(removed, old + new) / (2 * weight),
             )
-            drop = np.maximum(cp[run, 2] - old, 0.0)
+            drop = np.maximum(cz - old, 0.0)
             rim = np.sqrt(np.maximum(radius**2 - drop * drop, 0.0))
             out.depth[run] = max(float(np.max(rim - np.abs(along))), 0.0)
             out.side[run] = np.sign(np.dot(removed, across))
         return out
 
-    def _cells_under(self, cp: np.ndarray, slew: float, half_width: float):
-        """The grid cells whose centres lie within `half_width` of the wheel's plane and within its
-        radius along the boom: (rows, cols, along, across), or None. Row by row, such cells form
-        one interval of columns, so only they are visited."""
-        radius, h = self.wheel.radius, self._h
+    def _cells_near(self, run: int, cx: float, cy: float, slew: float, half_width: float):
+        """The cells that may lie under run's wheel: (flat indices, x, y of their centres), or
+        None. They are gathered with a margin of CELL_MARGIN and kept while the wheel moves
+        less than that margin, so most periods only compute their distances to the wheel."""
+        kept = self._near[run]
+        if kept is not None:
+            x0, y0, slew0, width0, cells = kept
+            moved = abs(cx - x0) + abs(cy - y0) + self.wheel.radius * abs(slew - slew0)
+            if moved < CELL_MARGIN and half_width <= width0:
+                return cells
+        width = half_width + CELL_MARGIN
+        flat = self._cells_under(np.array([cx, cy]), slew, width, self.wheel.radius + CELL_MARGIN)
+        cells = None if flat is None else (flat, self.surface.x[flat % self._nx], self.surface.y[flat // self._nx])
+        self._near[run] = (cx, cy, slew, width, cells)
+        return cells
+
+    def _cells_under(self, cp: np.ndarray, slew: float, half_width: float, radius: float) -> np.ndarray | None:
+        """Flat indices of the grid cells whose centres lie within `half_width` of the wheel's
+        plane and within `radius` of its centre along the boom, or None. Row by row, such cells
+        form one interval of columns, so only they are visited."""
+        h = self._h
         cos, sin = float(np.cos(slew)), float(np.sin(slew))
         extent = radius * abs(sin) + half_width * abs(cos)  # the rectangle's half-height in Y
         iy0 = max(int(np.ceil((cp[1] - extent - self._y0) / h)), 0)
@@ -107,8 +136,6 @@ class Cutter:
         total = int(counts.sum())
         if total == 0:
             return None
-        rows = np.repeat(np.arange(iy0, iy1 + 1), counts)
-        cols = np.repeat(first.astype(np.int64) - np.cumsum(counts) + counts, counts) + np.arange(total)
-        dx = self.surface.x[cols] - cp[0]
-        dy = self.surface.y[rows] - cp[1]
-        return rows, cols, dx * cos + dy * sin, dy * cos - dx * sin
+        row = np.repeat(np.arange(iy0, iy1 + 1), counts)
+        col = np.repeat(first.astype(np.int64) - np.cumsum(counts) + counts, counts) + np.arange(total)
+        return row * self._nx + col

@@ -28,6 +28,7 @@ from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.surface import Surface
 
 SECONDS_PER_HOUR = 3600.0
+DUG_RATE_FLOOR = 1e-6  # m^3/s: below it the lagged dug rate is no load at all (under 1 N of force)
 KG_PER_T = 1000.0
 
 
@@ -68,7 +69,8 @@ class Reclaim:
         self.bucket_interval = 60.0 / self.wheel.discharges_per_minute
         self.bucket = np.zeros(runs)
         self._discharge_at = self.bucket_interval
-        self._belt = np.zeros(runs)  # m^3/s, the last discharge spread over the next interval
+        self._next_rate: np.ndarray | None = None  # t/h the belt carries from the next period on
+        self._hold_end = -1  # the last period of the current belt load
         self._dug_rate = np.zeros(runs)  # m^3/s, lagged by a bucket interval
         self._lag = period / (self.bucket_interval + period)
         self._arm = np.zeros((runs, 2))  # the last cut's centre from the CP: along the boom, up (m)
@@ -91,24 +93,16 @@ class Reclaim:
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
         them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period."""
+        if self._next_rate is not None:  # a bucket discharged as the last period ended
+            self.rate[:] = self._next_rate
+            self._next_rate = None
         cp = self.machine.fk(q)
         cut = self.cutter.cut(cp, q[:, 1], runs)
         self.dug += cut.volume
         self.bucket += cut.volume
-        np.multiply(self._belt, self.density * (SECONDS_PER_HOUR / KG_PER_T), out=self.rate)
-        self.conveyed += self._belt * self.period
         if (k + 1) * self.period >= self._discharge_at - 1e-9:  # the bucket discharges as the period ends
-            carried = self._discharge()
-            following = self._discharge_at + self.bucket_interval
-            periods = np.ceil(following / self.period - 1e-9) - (k + 1)  # the next interval, in periods
-            self._belt = carried / (periods * self.period)
-            self._discharge_at = following
+            self._discharge_onto_belt(k)
         self.depth[:] = cut.depth
-        carrying = self.rate > 0
-        self.carrying_periods += carrying
-        self.rate_sum += self.rate
-        self.rate_square_sum += self.rate**2
-        np.maximum(self.rate_max, self.rate, out=self.rate_max)
         np.maximum(self.depth_max, cut.depth, out=self.depth_max)
         if self._framed is not None and k % self._frame_every == 0:
             self._keep_frame(k)
@@ -117,6 +111,11 @@ class Reclaim:
         # The buckets cut in chips, one a bucket interval: the load follows the dug rate (spill
         # included: it was cut all the same) through a lag of one bucket interval.
         self._dug_rate += (cut.volume / self.period - self._dug_rate) * self._lag
+        self._dug_rate[self._dug_rate < DUG_RATE_FLOOR] = 0.0
+        if not self._dug_rate.any():  # no wheel cuts: it turns empty
+            self.power[:] = self.idle_power
+            self.force[:] = 0.0
+            return np.zeros_like(q)
         demand = self.cutting_energy * self._dug_rate + self.idle_power
         np.minimum(demand, self.wheel.power, out=self.power)  # beyond its rating the wheel stalls
         tangential = np.maximum(self.power - self.idle_power, 0.0) / self.wheel.rim_speed
@@ -159,9 +158,36 @@ class Reclaim:
         self.bucket[:] = 0.0
         return carried
 
-    def finish(self) -> None:
-        """At the end of the path, the bucket in the cut discharges."""
+    def _discharge_onto_belt(self, k: int) -> None:
+        """The bucket discharges as period k ends; the belt carries its load, evenly, over the
+        periods until the next discharge. The rate is constant over them: its statistics are
+        added for the whole hold at once (and the part beyond the path's end taken off again)."""
+        carried = self._discharge()
+        following = self._discharge_at + self.bucket_interval
+        periods = int(np.ceil(following / self.period - 1e-9)) - (k + 1)
+        rate = carried / (periods * self.period) * self.density * (SECONDS_PER_HOUR / KG_PER_T)  # t/h
+        self._add_hold(rate, carried, periods)
+        self._next_rate, self._hold_end = rate, k + periods
+        self._discharge_at = following
+
+    def _add_hold(self, rate: np.ndarray, conveyed: np.ndarray, periods: int) -> None:
+        """Count `periods` control periods at `rate` (t/h) that convey `conveyed` (m^3); negative
+        `periods` take them off again."""
+        self.conveyed += conveyed
+        self.carrying_periods += periods * (rate > 0)
+        self.rate_sum += periods * rate
+        self.rate_square_sum += periods * rate**2
+        if periods > 0:
+            np.maximum(self.rate_max, rate, out=self.rate_max)
+
+    def finish(self, k: int) -> None:
+        """After the path's last period k: the bucket in the cut discharges, and what the belt
+        would carry after the path's end is not counted as conveyed."""
         self._discharge()
+        beyond = self._hold_end - k
+        if beyond > 0:
+            rate = self._next_rate if self._next_rate is not None else self.rate
+            self._add_hold(rate, -rate * beyond * self.period / (self.density * (SECONDS_PER_HOUR / KG_PER_T)), -beyond)
 
     def record(self, row: int) -> None:
         self.recorded["rate"][row] = self.rate
