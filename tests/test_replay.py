@@ -394,6 +394,9 @@ def test_preview_shows_the_machine_before_the_recording(short_scene, short_recor
 # -- the command line and the export ----------------------------------------------------------
 
 
+STOP_TIMEOUT = 60  # s for a replay to stop: seconds here, more on a CI machine busy with other tests
+
+
 def _start_cli(*args):
     return subprocess.Popen(
         [sys.executable, "-m", "bwr_twin.replay", *map(str, args)],
@@ -417,7 +420,7 @@ def test_cli_replays_a_run_directory_until_interrupted(short_run):
     with urllib.request.urlopen(f"http://127.0.0.1:{port}", timeout=10) as page:
         assert page.status == 200
     proc.send_signal(signal.SIGINT)
-    assert proc.wait(timeout=20) == 0
+    assert proc.wait(timeout=STOP_TIMEOUT) == 0
     assert _port_is_free(port)
 
 
@@ -425,7 +428,7 @@ def test_cli_picks_a_free_port_for_port_0(short_run):
     proc = _start_cli(short_run[0], "--port", "0")
     line = proc.stdout.readline()
     proc.terminate()
-    assert proc.wait(timeout=20) == 128 + signal.SIGTERM  # a terminated replay stops cleanly too
+    assert proc.wait(timeout=STOP_TIMEOUT) == 128 + signal.SIGTERM  # a terminated replay stops cleanly too
     assert line.startswith("replay at http://127.0.0.1:"), line
     port = int(line.split(":")[2].split()[0])
     assert port > 0 and _port_is_free(port)
