@@ -58,7 +58,7 @@ def main() -> None:
         m = result.metrics
         reclaim = m.get("reclaim")
         dug = f"{reclaim['mass_t']:.0f} t | {reclaim['spill_t']:.0f} t" if reclaim else "– | –"
-        print(f"| {label} | {m['travel']['position_error_max'] * 1e3:+.1f} mm "
+        print(f"| {label} | {m['travel']['position_error_max'] * 1e3:+,.1f} mm "
               f"| {np.degrees(m['slew']['position_error_max']):+.3f} deg | {np.degrees(m['luff']['position_error_max']):+.3f} deg "
               f"| {dug} | {seconds:.1f} s |")
         if scene is dig:
