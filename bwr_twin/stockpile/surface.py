@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator, griddata
 
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
@@ -88,6 +87,8 @@ def surveyed(file: Path, spacing: float, scene_path: Path) -> Surface:
 
 @functools.lru_cache(maxsize=4)
 def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surface:
+    from scipy.interpolate import RegularGridInterpolator, griddata  # a second to import: only for surveys
+
     where = f"{scene_path}: 'stockpile.surface_file' {file}"
     if file.suffix == ".npz":
         xs, ys, zs = _read_npz(file, where)
