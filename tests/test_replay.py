@@ -2,6 +2,7 @@
 by MuJoCo's own kinematics; the server binds locally, serves and frees its port; the timeline
 plays; the offline export stays small. Browser checks are in test_browser.py."""
 
+import os
 import shutil
 import signal
 import socket
@@ -404,7 +405,18 @@ def _start_cli(*args):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},  # SIGABRT prints every thread's stack
     )
+
+
+def _stopped(proc: subprocess.Popen) -> int:
+    """The replay's exit status; if it does not stop in time, fail with where its threads stand."""
+    try:
+        return proc.wait(timeout=STOP_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGABRT)
+        _, err = proc.communicate(timeout=30)
+        pytest.fail(f"the replay did not stop within {STOP_TIMEOUT} s; its threads:\n{err[-6000:]}")
 
 
 def test_cli_replays_a_run_directory_until_interrupted(short_run):
@@ -420,7 +432,7 @@ def test_cli_replays_a_run_directory_until_interrupted(short_run):
     with urllib.request.urlopen(f"http://127.0.0.1:{port}", timeout=10) as page:
         assert page.status == 200
     proc.send_signal(signal.SIGINT)
-    assert proc.wait(timeout=STOP_TIMEOUT) == 0
+    assert _stopped(proc) == 0
     assert _port_is_free(port)
 
 
@@ -428,7 +440,7 @@ def test_cli_picks_a_free_port_for_port_0(short_run):
     proc = _start_cli(short_run[0], "--port", "0")
     line = proc.stdout.readline()
     proc.terminate()
-    assert proc.wait(timeout=STOP_TIMEOUT) == 128 + signal.SIGTERM  # a terminated replay stops cleanly too
+    assert _stopped(proc) == 128 + signal.SIGTERM  # a terminated replay stops cleanly too
     assert line.startswith("replay at http://127.0.0.1:"), line
     port = int(line.split(":")[2].split()[0])
     assert port > 0 and _port_is_free(port)

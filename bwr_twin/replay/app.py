@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 
 FRAME_RATE = 30.0  # Hz, scene and time slider
 READOUT_PERIOD = 0.1  # s between readout updates while playing
+PLAYER_STOP_WAIT = 5.0  # s for the player's thread to finish its frame when the replay stops
 CHART_PERIOD = 0.5  # s between time-marker updates while playing (each re-sends the charts' data)
 SPEEDS = (1, 100)  # x real time, the speed slider's range
 INITIAL_SPEED = 10
@@ -286,4 +287,4 @@ class Player:
 
     def stop(self) -> None:
         self._stopped.set()
-        self._thread.join()
+        self._thread.join(timeout=PLAYER_STOP_WAIT)  # a daemon: a frame stuck in viser must not hold the exit
