@@ -44,6 +44,9 @@ def _port(text: str) -> int:
     return port
 
 
+SIGNAL_CHECK = 0.25  # s between the main thread's looks for a signal
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bwr_twin.replay", description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -107,8 +110,8 @@ def main(argv: list[str] | None = None) -> int:
         if recording is None:
             server.load(simulate_in_child(scene, use_cache=not args.no_cache, progress=server.show_progress))
             print("simulation done: the timeline is ready", flush=True)
-        while True:
-            time.sleep(3600)
+        while True:  # Ctrl-C and SIGTERM may land on one of viser's threads: the main one
+            time.sleep(SIGNAL_CHECK)  # runs their handler only once its sleep ends
     except BwrError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
