@@ -9,40 +9,19 @@ Prints the episode return and the largest position error per axis.
 
 from __future__ import annotations
 
-import argparse
 import sys
-import time
 
 import gymnasium
 
 import bwr_twin.gym  # noqa: F401  (registers bwr_twin/Reclaim-v0)
-from bwr_twin.errors import exit_status
-from bwr_twin.gym.evaluate import run_episode
+from bwr_twin.gym.evaluate import Policy, episode_command
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default="paper_individual_gains", help="scene file or shipped scene name")
-    parser.add_argument("--seed", type=int, default=1, help="the episode's scene seed and the policy's (default 1)")
-    parser.add_argument("--duration", type=float, help="stop after this many simulated seconds (default: the whole path)")
-    args = parser.parse_args(argv)
-    if args.duration is not None and not args.duration > 0:
-        parser.error(f"--duration must be > 0 s, got {args.duration}")
-    return exit_status(lambda: _run(args))
-
-
-def _run(args: argparse.Namespace) -> int:
-    env = gymnasium.make("bwr_twin/Reclaim-v0", scene=args.scene, action_mode="acceleration")
-    if args.duration is not None:
-        steps = max(1, round(args.duration / env.unwrapped.control_period))
-        env = gymnasium.wrappers.TimeLimit(env, max_episode_steps=steps)
-    env.action_space.seed(args.seed)
-    start = time.perf_counter()
-    summary = run_episode(env, lambda observation: env.action_space.sample(), seed=args.seed)
-    print("\n".join(summary.lines()))
-    print(f"wall time: {time.perf_counter() - start:.1f} s")
-    return 0
+def random_policy(env: gymnasium.Env, seed: int) -> Policy:
+    """Uniform actions from the action space, seeded."""
+    env.action_space.seed(seed)
+    return lambda observation: env.action_space.sample()
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(episode_command(__doc__.split("\n\n")[0], random_policy))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -11,6 +13,7 @@ import numpy as np
 from bwr_twin.model.machine import AXES, UNITS, to_display
 
 Policy = Callable[[np.ndarray], np.ndarray]
+PolicyFactory = Callable[[gymnasium.Env, int], Policy]  # (environment, seed) -> policy
 
 
 @dataclass(frozen=True)
@@ -49,3 +52,31 @@ def run_episode(env: gymnasium.Env, policy: Policy, *, seed: int) -> EpisodeSumm
         worst = np.maximum(worst, np.abs(info["position_error"]))
         if terminated or truncated:
             return EpisodeSummary(total, steps, info["time"], worst, info.get("ended", "time limit"))
+
+
+def episode_command(description: str, make_policy: PolicyFactory, argv: list[str] | None = None) -> int:
+    """The examples' command line: `--scene`, `--seed`, `--duration`. Runs one episode of the
+    policy `make_policy(env, seed)` gives, in acceleration mode, and prints its summary; a bad
+    scene gets one line and exit status 2."""
+    from bwr_twin.errors import exit_status
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--scene", default="paper_individual_gains", help="scene file or shipped scene name")
+    parser.add_argument("--seed", type=int, default=1, help="the episode's scene seed and the policy's (default 1)")
+    parser.add_argument("--duration", type=float, help="stop after this many simulated seconds (default: the whole path)")
+    args = parser.parse_args(argv)
+    if args.duration is not None and not args.duration > 0:
+        parser.error(f"--duration must be > 0 s, got {args.duration}")
+
+    def run() -> int:
+        env = gymnasium.make("bwr_twin/Reclaim-v0", scene=args.scene, action_mode="acceleration")
+        if args.duration is not None:
+            steps = max(1, round(args.duration / env.unwrapped.control_period))
+            env = gymnasium.wrappers.TimeLimit(env, max_episode_steps=steps)
+        start = time.perf_counter()
+        summary = run_episode(env, make_policy(env, args.seed), seed=args.seed)
+        print("\n".join(summary.lines()))
+        print(f"wall time: {time.perf_counter() - start:.1f} s")
+        return 0
+
+    return exit_status(run)
