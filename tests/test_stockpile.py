@@ -226,3 +226,19 @@ def test_a_bad_stockpile_is_named(override, message, tmp_path):
         scene = load_scene(SCENES / "heavy_dig_pile.toml", {k: str(tmp_path / v) if k.endswith("_file") else v
                                                             for k, v in override.items()})
         build_surface(scene.stockpile, scene.path)
+
+
+def test_a_batch_summary_reports_each_run_s_reclaim(tmp_path):
+    import csv
+
+    scene = tmp_path / "dig.toml"
+    via = ",\n".join(f"  {{ t = {v['t']}, p = {v['p']} }}" for v in SHORT_DIG["path.via_points"][:2])
+    scene.write_text(f'extends = "{SCENES / "heavy_dig_pile.toml"}"\n\n[path]\nframe = "world"\nvia_points = [\n{via}\n]\n')
+    (tmp_path / "sweep.toml").write_text('scene = "dig.toml"\nseeds = [1, 2]\n')
+    proc = subprocess.run([sys.executable, "-m", "bwr_twin.batch", tmp_path / "sweep.toml", "--out", tmp_path / "b"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    with open(tmp_path / "b" / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [float(row["reclaim.mass_t"]) > 10.0 for row in rows] == [True, True]
+    assert all((tmp_path / "b" / row["run"] / "pile.npz").is_file() for row in rows)
