@@ -527,3 +527,12 @@ def test_export_of_the_paper_reclaim_fits_in_5_mb(tmp_path):
     proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr
     assert "700 s reclaim" in proc.stdout and out.stat().st_size <= EXPORT_LIMIT
+
+
+@pytest.mark.slow
+def test_export_of_the_digging_reclaim_fits_in_5_mb(tmp_path):
+    out = tmp_path / "dig.html"
+    command = [sys.executable, "-m", "bwr_twin.replay", "heavy_dig_pile", "--export", out, "--no-cache"]
+    proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "403 s reclaim" in proc.stdout and out.stat().st_size <= EXPORT_LIMIT  # the pile's tiles included
