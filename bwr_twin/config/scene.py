@@ -397,7 +397,7 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
         if args[-1] is Ellipsis:
             return tuple(_convert(args[0], v, path, f"{key}[{i}]") for i, v in enumerate(value))
         if len(value) != len(args):
-            meaning = " (travel, slew, luff)" if key.endswith(("resolution", "amplitude", "frictionloss", "gain")) else ""
+            meaning = " (travel, slew, luff)" if len(args) == 3 else ""
             raise SceneError(f"{path}: '{key}' must hold {len(args)} values{meaning}, got {len(value)}")
         return tuple(_convert(a, v, path, f"{key}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
     if hint is float:
