@@ -154,7 +154,8 @@ class Recording:
             if rows < 2:
                 raise BwrError(f"{run_dir / TIMESERIES_FILE}: {rows} rows of samples; a replay needs at least 2")
             machine = Machine(scene["machine"]["mjcf"])
-            pile = PileHistory.read(run_dir / PILE_FILE) if (run_dir / PILE_FILE).is_file() else None
+            pile_file = run_dir / PILE_FILE
+            pile = PileHistory.read(pile_file, float(columns["time_s"][-1])) if pile_file.is_file() else None
             return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile)
         except (ValueError, OSError) as exc:
             raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
@@ -177,9 +178,8 @@ class Recording:
         columns = dict(zip(names, values.T))
         reclaim, pile = result.reclaim, None
         if reclaim is not None:
-            pile = reclaim.history or PileHistory.from_frames(
-                reclaim.x, reclaim.y, reclaim.z_start,
-                [(float(result.time[-1]), np.arange(reclaim.z_end.size), reclaim.z_end.ravel())])
+            pile = reclaim.history or PileHistory.start_and_end(
+                reclaim.x, reclaim.y, reclaim.z_start, reclaim.z_end, float(result.time[-1]))
         return cls._from_columns(
             columns, result.scene.to_dict(), result.machine, title=result.scene.path.name, pile=pile
         )

@@ -37,12 +37,17 @@ class PileHistory:
                    np.concatenate([h for _, _, h in frames]) if frames else np.zeros(0, np.float32))
 
     @classmethod
-    def read(cls, path: Path) -> PileHistory:
+    def start_and_end(cls, x, y, z_start, z_end, end_time: float) -> PileHistory:
+        """A run kept without its history: the pile whole until `end_time` (s), then as it ended."""
+        return cls.from_frames(x, y, z_start, [(end_time, np.arange(z_end.size), z_end.ravel())])
+
+    @classmethod
+    def read(cls, path: Path, end_time: float) -> PileHistory:
+        """From a run's pile.npz; one written without its history ends at `end_time` (s)."""
         with np.load(path) as data:
             arrays = {key: data[key] for key in data.files}
-        if "frame_time" not in arrays:  # a run written without its history: start and end only
-            return cls(arrays["x"], arrays["y"], arrays["z_start"], np.array([0.0]), np.array([0, arrays["z_end"].size]),
-                       np.arange(arrays["z_end"].size), arrays["z_end"].ravel())
+        if "frame_time" not in arrays:
+            return cls.start_and_end(arrays["x"], arrays["y"], arrays["z_start"], arrays["z_end"], end_time)
         return cls(arrays["x"], arrays["y"], arrays["z_start"], arrays["frame_time"], arrays["frame_offsets"],
                    arrays["frame_cells"], arrays["frame_heights"])
 
