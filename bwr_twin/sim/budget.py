@@ -15,8 +15,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from bwr_twin.config.scene import Scene, StockpileSection
+from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
+from bwr_twin.stockpile.surface import cell_count
 
 # Measured costs (docs/performance.md), rounded up.
 STEP_S = 3.8e-6  # s of CPU per physics step of one run (MuJoCo's floor: 1.33 s for 350,000 steps)
@@ -69,7 +70,7 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_periods = duration / sim.control_period + 1
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
-        cells = pile_cells(scene.stockpile, scene.path) if scene.stockpile is not None else 0
+        cells = cell_count(scene.stockpile, scene.path) if scene.stockpile is not None else 0
         steps += run_steps
         periods += run_periods
         rows += run_rows
@@ -84,18 +85,6 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
     disk = rows * ROW_BYTES + runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
     disk += pile_cells_written * PILE_FILE_CELL_BYTES
     return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
-
-
-def pile_cells(section: StockpileSection, scene_path: Path) -> int:
-    """How many heights a run's pile holds, from its scene section alone for a windrow."""
-    if section.windrow is None:
-        from bwr_twin.stockpile.surface import build_surface
-
-        return build_surface(section, scene_path).z.size  # a survey: read once, then cached
-    w = section.windrow
-    spread = 2 * w.height / math.tan(math.radians(w.angle_of_repose))
-    return math.ceil((w.length + spread) / section.grid_spacing + 3) * math.ceil(
-        (w.crest_width + spread) / section.grid_spacing + 3)
 
 
 def check_estimate(cost: Estimate, *, where: Path | str, out_dir: Path, force: bool) -> None:

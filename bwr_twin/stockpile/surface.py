@@ -48,10 +48,22 @@ def build_surface(section: StockpileSection, scene_path: Path) -> Surface:
     return surveyed(section.surface_file, section.grid_spacing, scene_path)
 
 
+def cell_count(section: StockpileSection, scene_path: Path) -> int:
+    """How many heights a run's pile holds: from the section alone for a windrow, from the
+    (cached) gridded file for a survey."""
+    if section.windrow is None:
+        return build_surface(section, scene_path).z.size
+    (x_low, x_high), (y_low, y_high) = _windrow_extent(section.windrow)
+    return _line_count(x_low, x_high, section.grid_spacing) * _line_count(y_low, y_high, section.grid_spacing)
+
+
+def _line_count(low: float, high: float, spacing: float) -> int:
+    """Grid lines from `low` to at least `high`, with one spare line of ground on each side."""
+    return int(np.ceil((high - low) / spacing)) + 3
+
+
 def _grid_lines(low: float, high: float, spacing: float) -> np.ndarray:
-    """Grid lines from `low` to at least `high`, one spare line of ground on each side."""
-    count = int(np.ceil((high - low) / spacing)) + 3
-    return low - spacing + np.arange(count) * spacing
+    return low - spacing + np.arange(_line_count(low, high, spacing)) * spacing
 
 
 def _check_size(nx: int, ny: int, scene_path: Path) -> None:
@@ -62,20 +74,24 @@ def _check_size(nx: int, ny: int, scene_path: Path) -> None:
         )
 
 
+def _windrow_extent(w: WindrowSection) -> tuple[tuple[float, float], tuple[float, float]]:
+    """(X range, Y range) of a windrow's footprint, m: the crest and a flank's run each side."""
+    spread = w.height / np.tan(np.radians(w.angle_of_repose))
+    cx, cy = w.centre
+    half_x, half_y = w.length / 2, w.crest_width / 2
+    return (cx - half_x - spread, cx + half_x + spread), (cy - half_y - spread, cy + half_y + spread)
+
+
 def windrow(w: WindrowSection, spacing: float, scene_path: Path) -> Surface:
     """A windrow: z = height - tan(repose) x (distance outside the crest rectangle along X or Y,
     whichever is larger), at least 0: planar flanks, hipped ends."""
-    slope = np.tan(np.radians(w.angle_of_repose))
-    spread = w.height / slope  # horizontal run of a flank
-    half_x, half_y = w.length / 2, w.crest_width / 2
+    xs, ys = _windrow_extent(w)
+    _check_size(_line_count(*xs, spacing), _line_count(*ys, spacing), scene_path)
+    x, y = _grid_lines(*xs, spacing), _grid_lines(*ys, spacing)
     cx, cy = w.centre
-    nx = int(np.ceil((w.length + 2 * spread) / spacing)) + 3
-    ny = int(np.ceil((w.crest_width + 2 * spread) / spacing)) + 3
-    _check_size(nx, ny, scene_path)
-    x = _grid_lines(cx - half_x - spread, cx + half_x + spread, spacing)
-    y = _grid_lines(cy - half_y - spread, cy + half_y + spread, spacing)
-    outside_x = np.maximum(np.abs(x - cx) - half_x, 0.0)
-    outside_y = np.maximum(np.abs(y - cy) - half_y, 0.0)
+    outside_x = np.maximum(np.abs(x - cx) - w.length / 2, 0.0)
+    outside_y = np.maximum(np.abs(y - cy) - w.crest_width / 2, 0.0)
+    slope = np.tan(np.radians(w.angle_of_repose))
     z = np.clip(w.height - slope * np.maximum(outside_x[None, :], outside_y[:, None]), 0.0, None)
     return Surface(x, y, z)
 
@@ -96,9 +112,7 @@ def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surfa
         xs, ys, zs = _read_points(file, where)
     else:
         raise SceneError(f"{where}: must be a .npz height grid or a .csv of x,y,z points")
-    nx = int(np.ceil((xs.max() - xs.min()) / spacing)) + 3
-    ny = int(np.ceil((ys.max() - ys.min()) / spacing)) + 3
-    _check_size(nx, ny, scene_path)
+    _check_size(_line_count(xs.min(), xs.max(), spacing), _line_count(ys.min(), ys.max(), spacing), scene_path)
     x = _grid_lines(xs.min(), xs.max(), spacing)
     y = _grid_lines(ys.min(), ys.max(), spacing)
     gx, gy = np.meshgrid(x, y)
