@@ -189,8 +189,9 @@ class Lockstep:
         k = self.k
         q_measured, qd_measured = self._measured
         disturbance = self._disturbances.forces.sample(k)
-        if self.reclaim is not None:
-            disturbance = disturbance + self.reclaim.step(k, self._q, self.plant.alive)
+        load = self.reclaim.step(k, self._q, self.plant.alive) if self.reclaim is not None else None
+        if load is not None:
+            disturbance = disturbance + load
         gust = self._disturbances.gusts.sample(k)
         self.plant.step(command, disturbance, gust)
         self._inputs = (q_measured, qd_measured, command, disturbance, gust,

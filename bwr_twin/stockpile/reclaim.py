@@ -90,9 +90,10 @@ class Reclaim:
         self._frames: list[list] = [[] for _ in range(runs)]
         self._framed = self.cutter.heights.copy() if frame_every else None
 
-    def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray:
+    def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray | None:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
-        them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period."""
+        them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period,
+        or None when there is none."""
         if self._next_rate is not None:  # a bucket discharged as the last period ended
             self.rate[:] = self._next_rate
             self._next_rate = None
@@ -107,7 +108,7 @@ class Reclaim:
         if self._framed is not None and k % self._frame_every == 0:
             self._keep_frame(k)
         if not self.loaded:
-            return np.zeros_like(q)
+            return None
         # The buckets cut in chips, one a bucket interval: the load follows the dug rate (spill
         # included: it was cut all the same) through a lag of one bucket interval.
         self._dug_rate += (cut.volume / self.period - self._dug_rate) * self._lag
@@ -115,7 +116,7 @@ class Reclaim:
         if not self._dug_rate.any():  # no wheel cuts: it turns empty
             self.power[:] = self.idle_power
             self.force[:] = 0.0
-            return np.zeros_like(q)
+            return None
         demand = self.cutting_energy * self._dug_rate + self.idle_power
         np.minimum(demand, self.wheel.power, out=self.power)  # beyond its rating the wheel stalls
         tangential = np.maximum(self.power - self.idle_power, 0.0) / self.wheel.rim_speed
