@@ -160,14 +160,61 @@ class DiggingSection:
 
 
 @dataclass(frozen=True)
+class RateControlSection:
+    """`[reclaim.rate_control]`: how the slew speed is trimmed to hold the target rate.
+
+    `type` "open_loop" follows the speed law alone; "belt_scale" trims it from the measured
+    reclaim rate, "wheel_power" from the wheel drive's power (the industry's proxy; it needs
+    [digging]); or an engineer's class, "my_rate.py:MyRateControl" (bwr_twin.control.rate).
+    The trim is a PI on the relative rate error: 1 + gain (e + integral(e) / integral_time),
+    within trim_limits, the measurement smoothed first over filter_time (a bucket wheel's rate
+    pulses with every bucket).
+    """
+
+    type: str = "open_loop"
+    gain: float = 0.5  # trim per unit of relative rate error
+    integral_time: float = 4.0  # s
+    filter_time: float = 1.0  # s, first-order low-pass on the measured rate
+    trim_limits: tuple[float, float] = (0.5, 2.0)  # the slew speed within these multiples of the law's
+
+
+@dataclass(frozen=True)
+class StopSection:
+    """`[reclaim.stop]`: when the reclaim ends; exactly one key."""
+
+    benches: int | None = None  # after this many benches
+    tonnes: float | None = None  # t, once the belt has carried this much
+    time: float | None = None  # s
+
+
+@dataclass(frozen=True)
+class ReclaimSection:
+    """`[reclaim]`: bench reclaiming planned from the pile (bwr_twin.planning.bench), instead
+    of [path]'s via points."""
+
+    target_rate: float  # t/h
+    bench_height: float  # m, at most 0.6 x the wheel's diameter
+    cut_depth: float  # m the travel advances between slew passes
+    bench_length: float  # m of travel a bench advances before the boom steps down
+    slew_limits: tuple[float, float]  # deg, the slew across the face stays within them
+    start: Vec3  # where the machine stands at t = 0: travel m, slew deg, luff deg
+    acceleration: Vec3  # m/s^2, deg/s^2, deg/s^2: the most the references ask of each axis
+    stop: StopSection
+    speed_law: Literal["cosine", "constant"] = "cosine"  # slew speed ~ 1/cos(slew), or constant
+    cap_angle: float = 70.0  # deg: beyond it the cosine law holds its speed
+    rate_control: RateControlSection = field(default_factory=RateControlSection)
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path  # the scene file, for messages
     machine: MachineSection
-    trajectory: PathSection
     simulation: SimulationSection
     encoders: EncoderSection
     disturbance: DisturbanceSection
     controller: ControllerSection
+    trajectory: PathSection | None = None  # via points, or
+    reclaim: ReclaimSection | None = None  # a bench reclaim planned from the stockpile
     plant: PlantSection = field(default_factory=PlantSection)
     stockpile: StockpileSection | None = None
     digging: DiggingSection | None = None
@@ -180,7 +227,9 @@ class Scene:
     def input_files(self) -> tuple[Path, ...]:
         """The files this scene reads: nothing the twin writes may replace them."""
         pile = (self.stockpile.surface_file,) if self.stockpile and self.stockpile.surface_file else ()
-        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile)
+        rate = self.reclaim.rate_control.type if self.reclaim else ""
+        rate_file = (Path(rate.rpartition(":")[0]),) if ":" in rate else ()
+        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile, *rate_file)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
@@ -207,8 +256,8 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     for key, value in (overrides or {}).items():
         if _is_path_key(key):
             value = _resolve_paths(value, Path.cwd())
-        elif key == "controller.type":
-            value = _resolve_controller_type(value, Path.cwd())
+        elif key in CLASS_KEYS:
+            value = _resolve_class_reference(value, Path.cwd())
         _set_dotted(raw, key, value, path)
     scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
     _check_rules(scene)
@@ -256,6 +305,9 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
     named = raw.get("controller", {}).get("type") if isinstance(raw.get("controller"), dict) else None
     if named is not None and named != _controller_type(base_raw):
         merged["controller"] = raw["controller"]  # another controller: none of the base's settings
+    for motion, other in (("path", "reclaim"), ("reclaim", "path")):
+        if motion in raw:
+            merged.pop(other, None)  # a path replaces its base's reclaim plan, and a plan its base's path
     return merged
 
 
@@ -286,6 +338,8 @@ def _rename_tables(raw: dict) -> dict:
 # Keys whose values are files, relative to the scene file that gives them: these, any key that
 # ends in "_file", and the file part of a controller type "my_controller.py:MyController".
 PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
+# Keys that name a class, built in or "file.py:ClassName" relative to the scene file.
+CLASS_KEYS = ("controller.type", "reclaim.rate_control.type")
 
 
 def _is_path_key(dotted: str) -> bool:
@@ -293,7 +347,7 @@ def _is_path_key(dotted: str) -> bool:
     return key in PATH_KEYS or key.endswith("_file")
 
 
-def _resolve_controller_type(value: Any, base: Path) -> Any:
+def _resolve_class_reference(value: Any, base: Path) -> Any:
     from bwr_twin.control.registry import is_file_reference
 
     if not (isinstance(value, str) and is_file_reference(value)):
@@ -318,8 +372,13 @@ def _resolve_paths(raw: Any, base: Path) -> Any:
         )
         for k, v in raw.items()
     }
-    if isinstance(resolved.get("controller"), dict) and "type" in resolved["controller"]:
-        resolved["controller"]["type"] = _resolve_controller_type(resolved["controller"]["type"], base)
+    for dotted in CLASS_KEYS:
+        *tables, key = dotted.split(".")
+        node = resolved
+        for table in tables:
+            node = node.get(table) if isinstance(node, dict) else None
+        if isinstance(node, dict) and key in node:
+            node[key] = _resolve_class_reference(node[key], base)
     return resolved
 
 
@@ -480,7 +539,22 @@ def _check_rules(scene: Scene) -> None:
                 f"{p}: 'simulation.{period}' ({getattr(sim, period)} s) must be a whole multiple of "
                 f"'simulation.{unit}' ({getattr(sim, unit)} s)"
             )
-    via = scene.trajectory.via_points
+    if (scene.trajectory is None) == (scene.reclaim is None):
+        raise SceneError(f"{p}: a scene needs either a [path] of via points or a [reclaim], not both")
+    if scene.trajectory is not None:
+        _check_path(scene)
+    _check_stockpile(scene)
+    if scene.reclaim is not None:
+        _check_reclaim(scene)
+    files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
+    files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
+    for key, file in files.items():
+        if file is not None and not file.is_file():
+            raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
+
+
+def _check_path(scene: Scene) -> None:
+    p, via = scene.path, scene.trajectory.via_points
     if len(via) < 2:
         raise SceneError(f"{p}: 'path.via_points' needs at least 2 via points, got {len(via)}")
     for i in range(1, len(via)):
@@ -489,12 +563,47 @@ def _check_rules(scene: Scene) -> None:
                 f"{p}: via point {i + 1} (t = {via[i].t} s) must come after via point {i} "
                 f"(t = {via[i - 1].t} s): times must increase"
             )
-    _check_stockpile(scene)
-    files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
-    files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
-    for key, file in files.items():
-        if file is not None and not file.is_file():
-            raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
+
+
+def _check_reclaim(scene: Scene) -> None:
+    """The rules of [reclaim] that need no machine; the planner checks the rest against it."""
+    p, r = scene.path, scene.reclaim
+    if scene.stockpile is None:
+        raise SceneError(f"{p}: [reclaim] needs a [stockpile] to reclaim")
+    for key in ("target_rate", "bench_height", "cut_depth", "bench_length"):
+        if not getattr(r, key) > 0:
+            raise SceneError(f"{p}: 'reclaim.{key}' must be > 0, got {getattr(r, key)}")
+    if r.bench_length < r.cut_depth:
+        raise SceneError(f"{p}: 'reclaim.bench_length' ({r.bench_length} m) must be at least one "
+                         f"'reclaim.cut_depth' ({r.cut_depth} m)")
+    for axis, value in zip(("travel", "slew", "luff"), r.acceleration):
+        if not value > 0:
+            raise SceneError(f"{p}: 'reclaim.acceleration' ({axis}) must be > 0, got {value}")
+    low, high = r.slew_limits
+    if not low < high:
+        raise SceneError(f"{p}: 'reclaim.slew_limits' must be [low, high] with low < high, got {list(r.slew_limits)}")
+    if not 0 < r.cap_angle < 90:
+        raise SceneError(f"{p}: 'reclaim.cap_angle' must lie in (0, 90) deg, got {r.cap_angle}")
+    stops = {k: v for k, v in dataclasses.asdict(r.stop).items() if v is not None}
+    if len(stops) != 1:
+        raise SceneError(f"{p}: [reclaim.stop] needs exactly one of 'benches', 'tonnes' or 'time', got "
+                         f"{', '.join(stops) or 'none'}")
+    ((key, value),) = stops.items()
+    if not value > 0:
+        raise SceneError(f"{p}: 'reclaim.stop.{key}' must be > 0, got {value}")
+    control = r.rate_control
+    if not control.gain >= 0:
+        raise SceneError(f"{p}: 'reclaim.rate_control.gain' must be >= 0, got {control.gain}")
+    for key in ("integral_time", "filter_time"):
+        if not getattr(control, key) > 0:
+            raise SceneError(f"{p}: 'reclaim.rate_control.{key}' must be > 0, got {getattr(control, key)}")
+    low, high = control.trim_limits
+    if not 0 < low <= 1 <= high:
+        raise SceneError(f"{p}: 'reclaim.rate_control.trim_limits' must hold 0 < low <= 1 <= high, "
+                         f"got {list(control.trim_limits)}")
+    if control.type == "wheel_power" and scene.digging is None:
+        raise SceneError(f"{p}: 'reclaim.rate_control.type' \"wheel_power\" needs [digging]: "
+                         "without a digging load the wheel's power does not follow the rate")
 
 
 def _check_stockpile(scene: Scene) -> None:

@@ -37,13 +37,19 @@ def controller_class(name: str) -> type[Controller]:
         raise SceneError(f"'controller.type' must be one of {', '.join(BUILT_IN)} or "
                          f"\"file.py:ClassName\", got {name!r}")
     file, _, attribute = name.rpartition(":")
-    return _class_in_file(Path(file), attribute)
+    cls = class_in_file(Path(file), attribute, Controller, "controller.type")
+    settings = getattr(cls, "Settings", None)
+    if not (isinstance(settings, type) and dataclasses.is_dataclass(settings)):
+        raise SceneError(f"{file}: {attribute}.Settings must be a dataclass of its scene keys")
+    return cls
 
 
 @functools.cache
-def _class_in_file(file: Path, attribute: str) -> type[Controller]:
+def class_in_file(file: Path, attribute: str, base: type, key: str) -> type:
+    """The class `attribute` of the Python file `file`, derived from `base`; SceneError naming
+    the scene's `key` or the file if there is none."""
     if not file.is_file():
-        raise SceneError(f"'controller.type': {file} does not exist")
+        raise SceneError(f"'{key}': {file} does not exist")
     # A module name of its own per file, so two files may both hold `MyController`.
     module_name = f"bwr_twin_user_controller_{hashlib.sha256(str(file).encode()).hexdigest()[:12]}"
     spec = importlib.util.spec_from_file_location(module_name, file)
@@ -56,9 +62,7 @@ def _class_in_file(file: Path, attribute: str) -> type[Controller]:
         raise SceneError(f"{file}: importing it raised {type(exc).__name__}: {exc}") from None
     sys.modules[module_name] = module  # dataclasses and pickling look classes up by module
     cls = getattr(module, attribute, None)
-    if not (isinstance(cls, type) and issubclass(cls, Controller)):
-        raise SceneError(f"{file}: has no class {attribute!r} derived from bwr_twin.control.Controller")
-    settings = getattr(cls, "Settings", None)
-    if not (isinstance(settings, type) and dataclasses.is_dataclass(settings)):
-        raise SceneError(f"{file}: {attribute}.Settings must be a dataclass of its scene keys")
+    if not (isinstance(cls, type) and issubclass(cls, base)):
+        package = base.__module__.rpartition(".")[0]  # as the package exports it
+        raise SceneError(f"{file}: has no class {attribute!r} derived from {package}.{base.__name__}")
     return cls

@@ -28,6 +28,7 @@ ENVELOPE_KEY = "envelope_{axis}"
 WHEEL_KEYS = ("wheel_diameter", "wheel_width", "wheel_buckets", "bucket_volume", "wheel_discharges_per_minute")
 WHEEL_POWER_KEY = "wheel_power"  # optional: without it, the cutting force has no ceiling
 RAIL_CLEARANCE_KEY = "rail_clearance"
+RATED_SPEED_KEY = "rated_speed_{axis}"  # optional: without it, an axis has no rated speed (inf)
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
@@ -105,6 +106,7 @@ class Machine:
         wheel: the bucket wheel, or None if the file does not describe one (it cannot dig).
         rail_clearance: half-width (m) of the strip beside the rail axis that the machine's
             carriage takes, where no stockpile may lie (0 if the file does not say).
+        rated_speed: (3,) the drives' rated speeds in m/s and rad/s (inf where the file gives none).
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None):
@@ -131,6 +133,7 @@ class Machine:
         self.wheel = self._read_wheel()
         rail_clearance = self._numeric(RAIL_CLEARANCE_KEY)
         self.rail_clearance = float(rail_clearance[0]) if rail_clearance is not None else 0.0
+        self.rated_speed = self._read_rated_speed()
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
@@ -258,6 +261,18 @@ class Machine:
             raise ModelError(f"{self.path}: custom numeric '{WHEEL_POWER_KEY}' must hold one value > 0")
         return Wheel(diameter, width, int(buckets), volume, discharges,
                      float(power[0]) if power is not None else np.inf)
+
+    def _read_rated_speed(self) -> np.ndarray:
+        speeds = np.full(3, np.inf)
+        for j, axis in enumerate(AXES):
+            key = RATED_SPEED_KEY.format(axis=axis)
+            value = self._numeric(key)
+            if value is None:
+                continue
+            if len(value) != 1 or not value[0] > 0:
+                raise ModelError(f"{self.path}: custom numeric '{key}' must hold one value > 0")
+            speeds[j] = value[0]
+        return speeds
 
     def _drive_limits(self) -> np.ndarray:
         m = self.model

@@ -55,17 +55,27 @@ class Plan:
 
     @classmethod
     def from_scene(cls, scene: Scene) -> Plan:
-        """Plan the scene's path (inverse kinematics and cubics only, no simulation)."""
+        """Plan the scene's path (inverse kinematics and cubics only, no simulation), or its
+        bench reclaim as the plan's speed law alone would run it."""
         from bwr_twin.planning.trajectory import Trajectory
 
         machine = Machine(scene.machine.mjcf)
-        try:
-            trajectory = Trajectory.plan(scene.trajectory, machine)
-        except BwrError as exc:
-            raise type(exc)(f"{scene.path}: {exc}") from None
         period = scene.simulation.record_period
-        time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
-        q_desired, qd_desired, _ = trajectory.sample(time)
+        if scene.reclaim is not None:
+            from bwr_twin.planning.bench import plan_scene
+            from bwr_twin.planning.follower import nominal
+
+            control = scene.simulation.control_period
+            time, q_desired, qd_desired, trajectory = nominal(
+                plan_scene(scene), control, machine.fk, every=max(round(period / control), 1),
+                stop_time=scene.reclaim.stop.time)
+        else:
+            try:
+                trajectory = Trajectory.plan(scene.trajectory, machine)
+            except BwrError as exc:
+                raise type(exc)(f"{scene.path}: {exc}") from None
+            time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
+            q_desired, qd_desired, _ = trajectory.sample(time)
         pile = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
         return cls(
             machine=machine,
@@ -139,7 +149,13 @@ class Recording:
     @classmethod
     def from_run_dir(cls, run_dir: str | Path) -> Recording:
         """Read a run directory written by `python -m bwr_twin.run` (or `results.write_run`)."""
-        from bwr_twin.results.rundir import PILE_FILE, SCENE_FILE, TIMESERIES_FILE, read_timeseries
+        from bwr_twin.results.rundir import (
+            METRICS_FILE,
+            PILE_FILE,
+            SCENE_FILE,
+            TIMESERIES_FILE,
+            read_timeseries,
+        )
 
         run_dir = Path(run_dir)
         missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
@@ -156,7 +172,10 @@ class Recording:
             machine = Machine(scene["machine"]["mjcf"])
             pile_file = run_dir / PILE_FILE
             pile = PileHistory.read(pile_file, float(columns["time_s"][-1])) if pile_file.is_file() else None
-            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile)
+            run = {}
+            if scene["trajectory"] is None:  # a bench reclaim's waypoints are the run's own
+                run = json.loads((run_dir / METRICS_FILE).read_text())["run"]
+            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile, run=run)
         except (ValueError, OSError) as exc:
             raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
         except KeyError as exc:
@@ -180,15 +199,15 @@ class Recording:
         if reclaim is not None:
             pile = reclaim.history or PileHistory.start_and_end(
                 reclaim.x, reclaim.y, reclaim.z_start, reclaim.z_end, float(result.time[-1]))
-        return cls._from_columns(
-            columns, result.scene.to_dict(), result.machine, title=result.scene.path.name, pile=pile
-        )
+        return cls._from_columns(columns, result.scene.to_dict(), result.machine, title=result.scene.path.name,
+                                 pile=pile, run=result.metrics["run"])
 
     @classmethod
     def _from_columns(
         cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str,
-        pile: PileHistory | None = None,
+        pile: PileHistory | None = None, run: dict,
     ) -> Recording:
+        """`run`: metrics.json's run block (a bench reclaim's waypoints)."""
         from bwr_twin.results.rundir import column_name
 
         def joints(stem: str) -> np.ndarray:
@@ -198,9 +217,14 @@ class Recording:
             return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
 
         path = scene["trajectory"]
-        via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
-        if path["frame"] == "paper":
-            via_points = paper_to_world(via_points)
+        if path is None:  # a bench reclaim: where the run began each segment of its plan
+            via_times = np.array(run["waypoint_times"], dtype=float)
+            via_points = np.array(run["waypoints"], dtype=float).reshape(-1, 3)
+        else:
+            via_times = np.array([v["t"] for v in path["via_points"]], dtype=float)
+            via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
+            if path["frame"] == "paper":
+                via_points = paper_to_world(via_points)
         plan = Plan(
             machine=machine,
             title=title,
@@ -208,7 +232,7 @@ class Recording:
             q_desired=joints("q_desired"),
             qd_desired=joints("qd_desired"),
             cp_desired=cp("desired"),
-            via_times=np.array([v["t"] for v in path["via_points"]], dtype=float),
+            via_times=via_times,
             via_points=via_points,
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
         )

@@ -88,6 +88,17 @@ class Recorder:
         self.signals = {name: np.zeros((len(kept), runs, 3)) for name in SIGNALS}
         self.wind_speed = np.zeros((len(kept), runs))
 
+    def end_at(self, samples: int) -> None:
+        """The run ends after `samples` control periods, sooner than planned: its last sample is kept."""
+        kept = self.samples[self.samples < samples - 1]
+        self.samples = np.append(kept, samples - 1)
+        self._row[samples - 1] = len(kept)
+
+    @property
+    def rows(self) -> int:
+        """How many rows the record holds."""
+        return len(self.samples)
+
     def row(self, k: int) -> int:
         """The row that keeps sample k, or -1."""
         return int(self._row[k])
@@ -95,6 +106,7 @@ class Recorder:
     def run_result(self, run: int, *, scene: Scene, machine: Machine, trajectory: Trajectory,
                    time: np.ndarray, metrics: dict) -> RunResult:
         """Run `run`'s share, as contiguous arrays of its own."""
-        signals = {name: np.ascontiguousarray(values[:, run]) for name, values in self.signals.items()}
+        rows = self.rows
+        signals = {name: np.ascontiguousarray(values[:rows, run]) for name, values in self.signals.items()}
         return RunResult(scene=scene, machine=machine, trajectory=trajectory, metrics=metrics,
-                         time=time[self.samples], wind_speed=self.wind_speed[:, run].copy(), **signals)
+                         time=time[self.samples], wind_speed=self.wind_speed[:rows, run].copy(), **signals)

@@ -65,8 +65,7 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
     peak_lockstep = 0.0
     for scene in scenes:
         sim = scene.simulation
-        via = scene.trajectory.via_points
-        duration = via[-1].t - via[0].t
+        duration = _duration_of(scene)
         run_periods = duration / sim.control_period + 1
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
@@ -85,6 +84,16 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
     disk = rows * ROW_BYTES + runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
     disk += pile_cells_written * PILE_FILE_CELL_BYTES
     return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
+
+
+def _duration_of(scene: Scene) -> float:
+    """s the scene's run may take: its path's, or the longest its bench plan may take."""
+    if scene.reclaim is not None:
+        from bwr_twin.planning.bench import plan_scene
+
+        return plan_scene(scene).longest_duration
+    via = scene.trajectory.via_points
+    return via[-1].t - via[0].t
 
 
 def check_estimate(cost: Estimate, *, where: Path | str, out_dir: Path, force: bool) -> None:

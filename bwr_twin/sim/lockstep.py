@@ -21,9 +21,12 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import ControllerContext, shared_settings
+from bwr_twin.control.rate import RateSignals, rate_control_class
 from bwr_twin.control.registry import controller_class
 from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
 from bwr_twin.model.machine import Machine
+from bwr_twin.planning.bench import plan_scene
+from bwr_twin.planning.follower import BenchReference, PathReference
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.results.metrics import OnlineMetrics
 from bwr_twin.results.record import Recorder, RunResult
@@ -47,6 +50,7 @@ def lockstep_key(scene: Scene) -> tuple:
         scene.plant.payload,
         str(scene.controller_mjcf),
         scene.trajectory,
+        scene.reclaim,
         scene.controller.type,
         shared_settings(scene.controller.settings),
         sim.timestep,
@@ -61,7 +65,7 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
     """Run one scene headless. Raises BwrError subclasses on bad input or divergence.
 
     `progress(done, total)`, if given, hears how many of the path's seconds are simulated, about
-    once a simulated second. `pile_frame_period` (s), if given, keeps the pile as it is dug that
+    once a simulated second (for a bench reclaim, of the most it may take). `pile_frame_period` (s), if given, keeps the pile as it is dug that
     often, for a replay.
     """
     (result,) = simulate_lockstep([scene], progress=progress, nthread=nthread, pile_frame_period=pile_frame_period)
@@ -86,14 +90,13 @@ def simulate_lockstep(
     )
     with mujoco_warnings():
         while not loop.done:
-            k = loop.k
             q_measured, qd_measured = loop.measure()
-            command = controller.compute(q_measured, qd_measured, loop.q_desired[k], loop.qd_desired[k],
-                                         loop.qdd_desired[k], loop.alive)
+            q_ref, qd_ref, qdd_ref = loop.reference_now()
+            command = controller.compute(q_measured, qd_measured, q_ref, qd_ref, qdd_ref, loop.alive)
             loop.advance(command, fuzzy_output=controller.fuzzy_output,
                          acceleration_command=controller.acceleration_command)
             if progress is not None and loop.k % HEALTH_CHECK_EVERY == 0:
-                progress(loop.k * loop.period, loop.trajectory.duration)
+                progress(loop.k * loop.period, loop.duration)
     return loop.results()
 
 
@@ -101,14 +104,21 @@ class Lockstep:
     """The runs of one lockstep, advanced a control period at a time by whoever computes the
     drive forces.
 
-    Each period k: `measure()` gives the encoders' reading, the reference is `q_desired[k]`,
-    `qd_desired[k]`, `qdd_desired[k]`, and `advance(command)` holds the drive forces for the
-    period. After the last period (`done`), `results()` gives each run's result.
+    Each period k: `measure()` gives the encoders' reading, `reference_now()` the reference
+    and `advance(command)` holds the drive forces for the period. After the last period
+    (`done`), `results()` gives each run's result.
+
+    The reference is a via-point path sampled in advance, the same for every run, or a bench
+    reclaim (scene [reclaim]) that each run follows on its own as its rate control trims the
+    slew speed; such a lockstep ends when every run has finished its plan.
 
     Attributes:
         machine: the plant's machine; `belief_machine` the controller's.
-        trajectory: the planned path; `time` the (samples,) times of the control periods (s).
-        q_desired, qd_desired, qdd_desired: (samples, 3) reference.
+        reference: the runs' reference (bwr_twin.planning.follower).
+        trajectory, q_desired, qd_desired, qdd_desired: a path scene's path and its (samples, 3)
+            rows; `plan` and `rate_control` instead for a bench reclaim.
+        time: the (samples,) times of the control periods (s); `samples` their count (for a
+            bench reclaim, the most it may take until it ends).
         k: the control period about to be measured and advanced.
         plant: the MuJoCo batch's owner (the true state: `plant.qpos`, `plant.qvel`).
         reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
@@ -124,27 +134,39 @@ class Lockstep:
         surface = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
         self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface)
         self.belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
-        try:
-            self.trajectory = trajectory = Trajectory.plan(scene.trajectory, machine)
-        except (UnreachableError, EnvelopeError) as exc:
-            raise type(exc)(f"{scene.path}: {exc}") from None
         self.runs = runs = len(scenes)
         self.nthread = min(nthread or os.cpu_count() or 1, runs)
         self.period = period = scene.simulation.control_period
-        self.samples = samples = round(trajectory.duration / period) + 1
-        self.time = trajectory.times[0] + np.arange(samples) * period
-        self.q_desired, self.qd_desired, self.qdd_desired = trajectory.sample(self.time)
-        self._cp_desired = machine.fk(self.q_desired)
+        self.plan = None
+        self.rate_control = None
+        if scene.reclaim is None:
+            try:
+                trajectory = Trajectory.plan(scene.trajectory, machine)
+            except (UnreachableError, EnvelopeError) as exc:
+                raise type(exc)(f"{scene.path}: {exc}") from None
+            self.reference = PathReference(trajectory, period)
+            self.trajectory = trajectory
+            self.q_desired = self.reference.q_desired  # the path's rows, the same for every run
+            self.qd_desired, self.qdd_desired = self.reference.qd_desired, self.reference.qdd_desired
+        else:
+            self.plan = plan_scene(scene)
+            self.reference = BenchReference(self.plan, runs, period, machine.fk)
+            control = scene.reclaim.rate_control
+            self.rate_control = rate_control_class(control.type)(
+                control, np.array([s.reclaim.target_rate for s in scenes]), period, self.scenes)
+        self.samples = samples = self.reference.samples  # for a bench plan, the most it may take
+        self.time = self.reference.time
 
-        self.plant = Plant(machine, scenes, q0=trajectory.knots[0], nthread=self.nthread)
-        self._encoders = Encoders([s.encoders for s in scenes], period, trajectory.knots[0])
+        self.plant = Plant(machine, scenes, q0=self.reference.start, nthread=self.nthread)
+        self._encoders = Encoders([s.encoders for s in scenes], period, self.reference.start)
         self._disturbances = Disturbances(scenes, period)
         self._recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
         self._metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
         self.reclaim = None
         if surface is not None:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
-            self.reclaim = Reclaim(scenes, machine, surface, period, len(self._recorder.samples), frame_every)
+            self.reclaim = Reclaim(scenes, machine, surface, period, len(self._recorder.samples), frame_every,
+                                   plan=self.plan)
         self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
         self._unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
         self._errors_and_forces = np.zeros((runs, 12))
@@ -159,6 +181,16 @@ class Lockstep:
     @property
     def done(self) -> bool:
         return self.k >= self.samples
+
+    @property
+    def duration(self) -> float:
+        """s from the first control period to the last (for a bench reclaim, the most it may take)."""
+        return (self.samples - 1) * self.period
+
+    def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)."""
+        r = self.reference
+        return r.q, r.qd, r.qdd
 
     @property
     def alive(self) -> np.ndarray | None:
@@ -188,15 +220,24 @@ class Lockstep:
         """
         k = self.k
         q_measured, qd_measured = self._measured
+        reference = self.reference
         disturbance = self._disturbances.forces.sample(k)
-        load = self.reclaim.step(k, self._q, self.plant.alive) if self.reclaim is not None else None
+        phase = reference.phase() if self.plan is not None else None
+        load = self.reclaim.step(k, self._q, self.plant.alive, phase) if self.reclaim is not None else None
         if load is not None:
             disturbance = disturbance + load
         gust = self._disturbances.gusts.sample(k)
         self.plant.step(command, disturbance, gust)
+        # A bench reference changes in place: the record keeps this period's.
+        planned = (reference.q, reference.qd, reference.qdd) if self.plan is None else \
+            (reference.q.copy(), reference.qd.copy(), reference.qdd.copy())
         self._inputs = (q_measured, qd_measured, command, disturbance, gust,
-                        _or(fuzzy_output, self._unrecorded), _or(acceleration_command, self._unrecorded))
+                        _or(fuzzy_output, self._unrecorded), _or(acceleration_command, self._unrecorded), *planned)
         self.k = k = k + 1
+        if self.plan is not None:
+            self._follow_plan(k, phase)
+        else:
+            reference.advance()
         if k % HEALTH_CHECK_EVERY == 0:
             self.plant.check_health()
         if k == self.samples:
@@ -205,25 +246,43 @@ class Lockstep:
             self._finish(k - 1, self._q, self._qd, self.plant.qvel)
             self.plant.check_health()
 
+    def _follow_plan(self, k: int, phase) -> None:
+        """On along the bench plan to period k: the rate control's trims from what it measured in
+        the period just ended, the stop condition, and the end of the lockstep once every run rests."""
+        reclaim, stop = self.reclaim, self.scenes[0].reclaim.stop
+        trim = self.rate_control.trim(RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting,
+                                                     phase.steady))
+        stopping = None
+        if stop.time is not None and k * self.period >= stop.time - 1e-9:
+            stopping = np.ones(self.runs, dtype=bool)
+        elif stop.tonnes is not None:
+            stopping = reclaim.carried_tonnes() >= stop.tonnes
+        self.reference.advance(trim, stopping)
+        if self.reference.finished.all() and k < self.samples:
+            self.samples = k + 1  # one more period at rest, measured and recorded
+            self.time = self.time[: self.samples]
+            self._recorder.end_at(self.samples)
+
     def _finish(self, j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray) -> None:
         """Sample j's metrics and record, once its period has ended at velocity qd_next."""
         columns, qdd, period = self._columns, self._qdd, self.period
-        np.subtract(self.q_desired[j], q, out=columns["POSITION"])
-        np.subtract(self.qd_desired[j], qd, out=columns["VELOCITY"])
+        (q_measured, qd_measured, command, disturbance, gust, fuzzy_output, acceleration_command,
+         q_desired, qd_desired, qdd_desired) = self._inputs
+        np.subtract(q_desired, q, out=columns["POSITION"])
+        np.subtract(qd_desired, qd, out=columns["VELOCITY"])
         np.divide(np.subtract(qd_next, qd, out=qdd), period, out=qdd)  # mean over the period
-        np.subtract(self.qdd_desired[j], qdd, out=columns["ACCELERATION"])
+        np.subtract(qdd_desired, qdd, out=columns["ACCELERATION"])
         np.copyto(columns["FORCE"], self.plant.drive_force)
-        q_measured, qd_measured, command, disturbance, gust, fuzzy_output, acceleration_command = self._inputs
         np.multiply(np.add(qd, qd_next, out=self._qd_mean), 0.5, out=self._qd_mean)
         self._metrics.add(j, self._errors_and_forces, command, q, self._qd_mean)
         row = self._recorder.row(j)
         if row < 0:
             return
-        self._metrics.add_cp_error(j, np.linalg.norm(self._cp_desired[j] - self.machine.fk(q), axis=1))
+        self._metrics.add_cp_error(j, np.linalg.norm(self.machine.fk(q_desired) - self.machine.fk(q), axis=1))
         signals = self._recorder.signals
-        for name, value in (("q_desired", self.q_desired[j]), ("q", q), ("q_measured", q_measured),
-                            ("qd_desired", self.qd_desired[j]), ("qd", qd), ("qd_measured", qd_measured),
-                            ("qdd_desired", self.qdd_desired[j]), ("qdd", qdd),
+        for name, value in (("q_desired", q_desired), ("q", q), ("q_measured", q_measured),
+                            ("qd_desired", qd_desired), ("qd", qd), ("qd_measured", qd_measured),
+                            ("qdd_desired", qdd_desired), ("qdd", qdd),
                             ("fuzzy_output", fuzzy_output), ("acceleration_command", acceleration_command),
                             ("drive_force_command", command), ("drive_force", self.plant.drive_force),
                             ("disturbance", disturbance)):
@@ -251,14 +310,19 @@ class Lockstep:
                 "mjcf": str(scene.machine.mjcf),
                 "controller_mjcf": str(scene.controller_mjcf),
                 "seed": scene.simulation.seed,
-                "duration": self.trajectory.duration,
+                "duration": self.duration,
                 "control_period": self.period,
                 "timestep": scene.simulation.timestep,
             }
+            if self.plan is not None:  # where the run began each segment of its plan, for a replay
+                waypoints = self.reference.waypoints(run)
+                metrics["run"]["waypoint_times"] = waypoints.times.tolist()
+                metrics["run"]["waypoints"] = waypoints.points.tolist()
             result = self._recorder.run_result(run, scene=scene, machine=self.machine,
-                                               trajectory=self.trajectory, time=self.time, metrics=metrics)
+                                               trajectory=self.reference.waypoints(run), time=self.time,
+                                               metrics=metrics)
             if self.reclaim is not None:
-                result.reclaim = self.reclaim.run_record(run)
+                result.reclaim = self.reclaim.run_record(run, self._recorder.rows)
             results.append(result)
         return results
 

@@ -11,6 +11,10 @@ Jacobian of that point: the cutting force at the rim, P_cut / rim speed with P_c
 cutting_energy x dug volume a second (at most the wheel drive's rating less its idle power),
 lagged by one bucket interval, opposes the buckets' motion (they rise through the face),
 and a lateral share of it opposes the slewing into the face.
+Under a bench plan it also measures how well the plan was carried out: the rate in steady
+cutting (a bucket interval after the wheel entered a full face, so that the belt carries what
+it cut), the landing (where the wheel first touched the pile, against where the planner
+predicted it would), the over-cut beyond the planned cut, and the tonnes of each bench.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.planning.bench import BenchPlan
+from bwr_twin.planning.follower import Phase
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.placement import check_placement
@@ -30,6 +36,7 @@ from bwr_twin.stockpile.surface import Surface
 SECONDS_PER_HOUR = 3600.0
 DUG_RATE_FLOOR = 1e-6  # m^3/s: below it the lagged dug rate is no load at all (under 1 N of force)
 KG_PER_T = 1000.0
+RATE_BAND = 0.1  # of the target: the band the steady rate is counted within
 
 
 @dataclass
@@ -51,9 +58,10 @@ class Reclaim:
     """Owns the piles of a lockstep's runs (through its Cutter) and their reclaim accounting."""
 
     def __init__(self, scenes: Sequence[Scene], machine: Machine, surface: Surface, period: float,
-                 record_rows: int, frame_every: int | None = None):
+                 record_rows: int, frame_every: int | None = None, plan: BenchPlan | None = None):
         """`surface`: the scenes' pile; `frame_every`: keep the cells changed every that many
-        control periods, for a replay. Raises SceneError if the machine cannot dig the pile."""
+        control periods, for a replay; `plan`: the bench plan the runs follow, if any. Raises
+        SceneError if the machine cannot dig the pile."""
         self.surface = surface
         check_placement(surface, machine, scenes[0].path)
         runs = len(scenes)
@@ -89,16 +97,32 @@ class Reclaim:
         self._frame_every = frame_every
         self._frames: list[list] = [[] for _ in range(runs)]
         self._framed = self.cutter.heights.copy() if frame_every else None
+        self.plan = plan
+        if plan is not None:
+            self.target = np.array([s.reclaim.target_rate for s in scenes])  # t/h
+            # The belt carries a cut a bucket interval later, and holds it one more.
+            self._settle = int(np.ceil(2 * self.bucket_interval / period))
+            self._steady_for = np.zeros(runs, dtype=np.int64)  # periods in steady cutting so far
+            self.steady_periods = np.zeros(runs, dtype=np.int64)
+            self.steady_sum, self.steady_square_sum = np.zeros(runs), np.zeros(runs)
+            self.steady_within = np.zeros(runs, dtype=np.int64)
+            self.contact = np.full((runs, 3), np.nan)  # world m: the CP when the wheel first cut
+            self.contact_time = np.full(runs, np.nan)
+            self.overcut_max = np.zeros(runs)
+            self.bench_carried = np.zeros((runs, plan.benches))  # m^3
+            self._bench = np.zeros(runs, dtype=np.int64)
 
-    def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray | None:
+    def step(self, k: int, q: np.ndarray, runs: np.ndarray | None, phase: Phase | None = None) -> np.ndarray | None:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
         them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period,
-        or None when there is none."""
+        or None when there is none. `phase`: where each run stands in its bench plan."""
         if self._next_rate is not None:  # a bucket discharged as the last period ended
             self.rate[:] = self._next_rate
             self._next_rate = None
         cp = self.machine.fk(q)
         cut = self.cutter.cut(cp, q[:, 1], runs)
+        if phase is not None:
+            self._follow(k, cp, cut, phase)
         self.dug += cut.volume
         self.bucket += cut.volume
         if (k + 1) * self.period >= self._discharge_at - 1e-9:  # the bucket discharges as the period ends
@@ -151,10 +175,39 @@ class Reclaim:
         self._arm[cutting, 1] = arm[cutting, 2]
         self._side[cutting] = cut.side[cutting]
 
+    def _follow(self, k: int, cp: np.ndarray, cut, phase: Phase) -> None:
+        """The bench plan's measures for period k."""
+        self._bench[:] = phase.bench
+        cutting = cut.volume > 0
+        if not cutting.any():
+            self._steady_for[:] = 0
+            return
+        first = cutting & np.isnan(self.contact_time)
+        if first.any():
+            self.contact[first] = cp[first]
+            self.contact_time[first] = k * self.period
+        if phase.steady.any():  # entering or leaving the face, the cut depth is the wheel's side
+            over = np.where(phase.steady & cutting, cut.depth - phase.planned_depth, 0.0)
+            np.maximum(self.overcut_max, over, out=self.overcut_max)
+        self._steady_for = np.where(phase.steady, self._steady_for + 1, 0)
+        counted = self._steady_for > self._settle
+        if counted.any():
+            rate = self.rate
+            self.steady_periods += counted
+            self.steady_sum += np.where(counted, rate, 0.0)
+            self.steady_square_sum += np.where(counted, rate**2, 0.0)
+            self.steady_within += counted & (np.abs(rate - self.target) <= RATE_BAND * self.target)
+
+    def carried_tonnes(self) -> np.ndarray:
+        """(runs,) t the buckets have discharged onto the belt so far."""
+        return self.carried * self.density / KG_PER_T
+
     def _discharge(self) -> np.ndarray:
         """Empty the bucket in the cut: up to its volume is carried, the rest spills; m^3 carried."""
         carried = np.minimum(self.bucket, self.wheel.bucket_volume)
         self.carried += carried
+        if self.plan is not None:
+            np.add.at(self.bench_carried, (np.arange(len(carried)), self._bench), carried)
         self.spilled += self.bucket - carried
         self.bucket[:] = 0.0
         return carried
@@ -224,14 +277,38 @@ class Reclaim:
             "cut_depth_max_m": float(self.depth_max[run]),
             "digging_force_max_N": float(self.force_max[run]),
             "wheel_capacity_tph": self.wheel.capacity * self.density[run] * SECONDS_PER_HOUR / KG_PER_T,
+            **(self._plan_metrics(run) if self.plan is not None else {}),
         }
 
-    def run_record(self, run: int) -> ReclaimRecord:
+    def _plan_metrics(self, run: int) -> dict:
+        """How the run carried out its bench plan (docs/reclaiming.md)."""
+        tonnes = self.density[run] / KG_PER_T
+        periods = int(self.steady_periods[run])
+        mean = self.steady_sum[run] / periods if periods else 0.0
+        variance = max(self.steady_square_sum[run] / periods - mean**2, 0.0) if periods else 0.0
+        predicted = self.plan.first_contact
+        landing = (float(np.linalg.norm(self.contact[run] - predicted))
+                   if predicted is not None and not np.isnan(self.contact_time[run]) else None)
+        return {
+            "target_rate_tph": float(self.target[run]),
+            "steady_time_s": periods * self.period,
+            "steady_rate_mean_tph": mean,
+            "steady_rate_cv": float(np.sqrt(variance) / mean) if mean > 0 else None,
+            "steady_within_10pct": float(self.steady_within[run] / periods) if periods else None,
+            "landing_error_m": landing,
+            "first_contact_time_s": None if np.isnan(self.contact_time[run]) else float(self.contact_time[run]),
+            "overcut_max_m": float(self.overcut_max[run]),
+            "bench_t": [float(v * tonnes) for v in self.bench_carried[run]],
+            "bench_planned_t": self.plan.bench_tonnes(),
+        }
+
+    def run_record(self, run: int, rows: int) -> ReclaimRecord:
+        """Run `run`'s signals over the first `rows` record rows, and its pile."""
         return ReclaimRecord(
-            rate=self.recorded["rate"][:, run].copy(),
-            cut_depth=self.recorded["depth"][:, run].copy(),
-            digging_force=self.recorded["force"][:, run].copy(),
-            wheel_power=self.recorded["power"][:, run].copy(),
+            rate=self.recorded["rate"][:rows, run].copy(),
+            cut_depth=self.recorded["depth"][:rows, run].copy(),
+            digging_force=self.recorded["force"][:rows, run].copy(),
+            wheel_power=self.recorded["power"][:rows, run].copy(),
             x=self.surface.x, y=self.surface.y, z_start=self.surface.z,
             z_end=self.cutter.heights[run].copy(),
             history=PileHistory.from_frames(self.surface.x, self.surface.y, self.surface.z, self._frames[run])

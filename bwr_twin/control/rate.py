@@ -1,0 +1,122 @@
+"""Reclaim rate control: the slew speed trimmed to hold the target tonnage.
+
+The bench planner's speed law (bwr_twin.planning.bench) sets the slew speed open loop, for a
+face of the bench's full height and the planned cut. Where the face is lower (the pile's
+flanks, the first passes into a pile's end) or the cut deeper, the tonnage drifts from the
+target; a reclaimer's rate loop trims the speed law by a factor from what it measures: the
+belt scale on the boom conveyor, or the wheel drive's power, the usual proxy (power = cutting
+energy x dug volume a second + the power of the wheel turning empty).
+
+A rate control sees every run of a lockstep at once, once a control period, and returns each
+run's trim. An engineer's own derives from `RateControl` and is named in the scene as
+`[reclaim.rate_control] type = "my_rate.py:MyRateControl"`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bwr_twin.config.scene import RateControlSection, Scene
+from bwr_twin.errors import SceneError
+
+SECONDS_PER_HOUR = 3600.0
+KG_PER_T = 1000.0
+
+
+@dataclass(frozen=True)
+class RateSignals:
+    """What a rate loop measures, every run's, this control period."""
+
+    belt_rate: np.ndarray  # (runs,) t/h, the belt scale on the boom conveyor
+    wheel_power: np.ndarray  # (runs,) W, the wheel drive (its idle power when there is no digging load)
+    cutting: np.ndarray  # (runs,) bool: the wheel is within the planned cut of a slew pass
+    steady: np.ndarray  # (runs,) bool: ... where the face allows the target (planned steady cutting)
+
+
+class RateControl:
+    """Open loop: the speed law alone (trim 1). Subclasses close the loop in `trim`.
+
+    Attributes:
+        settings: the scene's [reclaim.rate_control].
+        target: (runs,) t/h.
+        period: s between calls.
+        scenes: the lockstep's scenes, one per run (their [digging] calibrates a power loop).
+    """
+
+    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
+        self.settings, self.target, self.period, self.scenes = settings, target, period, scenes
+
+    def trim(self, signals: RateSignals) -> np.ndarray:
+        """Each run's factor on the planned slew speed, (runs,)."""
+        return np.ones(len(self.target))
+
+
+class RateFeedback(RateControl):
+    """PI on the relative rate error e = (target - measured) / target while the wheel is in a
+    pass's cut. The integral grows only in steady cutting (entering and leaving the face, the
+    rate falls short for want of face, not of speed) and not further into a trim limit; each
+    pass starts from the speed law (the next face is another). `measured` gives the rate the
+    loop sees, in t/h."""
+
+    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
+        super().__init__(settings, target, period, scenes)
+        self._integral = np.zeros(len(target))  # relative error x s
+        self._filtered = np.zeros(len(target))  # t/h
+        self._smoothing = period / (settings.filter_time + period)
+
+    def measured(self, signals: RateSignals) -> np.ndarray:
+        raise NotImplementedError
+
+    def trim(self, signals: RateSignals) -> np.ndarray:
+        s = self.settings
+        low, high = s.trim_limits
+        self._filtered += (self.measured(signals) - self._filtered) * self._smoothing
+        error = np.where(signals.cutting, (self.target - self._filtered) / self.target, 0.0)
+        unclipped = 1.0 + s.gain * (error + self._integral / s.integral_time)
+        winding = ((unclipped >= high) & (error > 0)) | ((unclipped <= low) & (error < 0))
+        self._integral += np.where(winding | ~signals.steady, 0.0, error * self.period)
+        self._integral[~signals.cutting] = 0.0
+        return np.clip(unclipped, low, high)
+
+
+class BeltScale(RateFeedback):
+    """Trims from the belt scale: the rate itself, a bucket interval after the cut."""
+
+    def measured(self, signals: RateSignals) -> np.ndarray:
+        return signals.belt_rate
+
+
+class WheelPower(RateFeedback):
+    """Trims from the wheel drive's power, calibrated to t/h by the scene's [digging]:
+    rate = (power - idle power) / cutting energy x bulk density."""
+
+    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
+        super().__init__(settings, target, period, scenes)
+        if any(s.digging is None for s in scenes):
+            raise SceneError(f"{scenes[0].path}: 'reclaim.rate_control.type' \"wheel_power\" needs [digging]")
+        self._idle = np.array([s.digging.idle_power for s in scenes])
+        self._tonnes_per_joule = np.array([s.stockpile.bulk_density / s.digging.cutting_energy for s in scenes]) \
+            * (SECONDS_PER_HOUR / KG_PER_T)
+
+    def measured(self, signals: RateSignals) -> np.ndarray:
+        return np.maximum(signals.wheel_power - self._idle, 0.0) * self._tonnes_per_joule
+
+
+BUILT_IN = {"open_loop": RateControl, "belt_scale": BeltScale, "wheel_power": WheelPower}
+
+
+def rate_control_class(name: str) -> type[RateControl]:
+    """The class a scene's `reclaim.rate_control.type` names; SceneError if there is none."""
+    from pathlib import Path
+
+    from bwr_twin.control.registry import class_in_file, is_file_reference
+
+    if name in BUILT_IN:
+        return BUILT_IN[name]
+    if not is_file_reference(name):
+        raise SceneError(f"'reclaim.rate_control.type' must be one of {', '.join(BUILT_IN)} or "
+                         f"\"file.py:ClassName\", got {name!r}")
+    file, _, attribute = name.rpartition(":")
+    return class_in_file(Path(file), attribute, RateControl, "reclaim.rate_control.type")

@@ -1,0 +1,504 @@
+"""Bench reclaiming planned from the pile: where the wheel lands, how far each slew pass goes,
+when the boom steps down (docs/reclaiming.md).
+
+The reclaimer works the pile's face in benches, from the top. At a bench's luff the wheel's
+lowest point is the bench's floor; the travel lands the wheel on the face, then each slew pass
+cuts a crescent across the face between the pile's edges, the travel advances one cut depth at
+the end of the pass, and the next pass slews back. After `bench_length` of travel the boom
+slews clear, the travel backs off and the boom steps down to the next bench.
+
+Nothing is assumed of the pile's shape: the planner digs a copy of it with the twin's own cut
+(bwr_twin.stockpile.cutting) as it plans, so it finds the face and the edges of every pass on the
+pile as the passes before it leave it, and predicts what each pass reclaims.
+
+The plan is a list of segments: `Move`s (smooth joint-space cubics, at rest at both ends, within
+the rated speeds and the scene's accelerations) and `Pass`es (a slew at the bench's travel and
+luff whose speed is decided while the run goes: the speed law, trimmed by the rate control;
+bwr_twin.planning.follower). A plan that cannot be carried out is refused with a SceneError
+before anything is simulated.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
+from bwr_twin.errors import EnvelopeError, SceneError
+from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.stockpile.cutting import Cutter
+from bwr_twin.stockpile.surface import Surface, build_surface
+
+SECONDS_PER_HOUR = 3600.0
+KG_PER_T = 1000.0
+MAX_BENCH_SHARE = 0.6  # of the wheel's diameter: the highest bench a wheel takes (docs/reclaiming.md)
+PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell
+DIG_STEP = 0.05  # m the wheel moves between cuts when the planner digs its copy of the pile
+LANDING_TOLERANCE = 0.01  # m of travel to which the landing is found
+SEARCH_STEP = 2.0  # m of travel between looks for the face
+CLEARANCE = 0.5  # m the wheel turns clear of the pile's edge beyond its speed ramp
+FULL_FACE = 0.9  # a pass cuts steadily where its face's section is at least this share of the full one
+SMOOTHING = 1.0  # m of the wheel's travel over which the predicted section is averaged
+MIN_MOVE = 1.0  # s: the shortest move
+
+
+@dataclass(frozen=True)
+class Move:
+    """A smooth joint-space move, at rest at both ends: one cubic per axis."""
+
+    start: np.ndarray  # (3,) m, rad, rad
+    end: np.ndarray
+    duration: float  # s, a whole number of control periods
+    bench: int  # 0-based
+    kind: str  # "approach", "travel step", "slew clear", "step down"
+
+    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration (3,) at `tau` s into the move."""
+        s = min(max(tau / self.duration, 0.0), 1.0)
+        delta = self.end - self.start
+        return (self.start + delta * (3 * s**2 - 2 * s**3), delta * (6 * s - 6 * s**2) / self.duration,
+                delta * (6 - 12 * s) / self.duration**2)
+
+
+@dataclass(frozen=True)
+class Pass:
+    """A slew across the face at one travel and luff; its speed is decided as the run goes."""
+
+    travel: float  # m
+    luff: float  # rad
+    start: float  # rad, slew
+    end: float  # rad
+    bench: int  # 0-based
+    number: int  # 1-based within the plan
+    cut: tuple[float, float]  # rad: where the predicted cut begins and ends, in the pass's direction
+    steady: tuple[float, float] | None  # rad: where the face stands at its full section, or None
+    face_height: float  # m, the bench's
+    cut_depth: float  # m, the travel advance that made this cut
+    radius: float  # m from the slew axis to the face's centre of area
+    volume: float  # m^3 the planner predicts it cuts
+
+    @property
+    def direction(self) -> float:
+        return 1.0 if self.end >= self.start else -1.0
+
+    def within(self, slew: float, interval: tuple[float, float] | None) -> bool:
+        """Whether `slew` lies in `interval` (given in the pass's direction)."""
+        if interval is None:
+            return False
+        low, high = sorted(interval)
+        return low <= slew <= high
+
+
+@dataclass(frozen=True)
+class SpeedLaw:
+    """The open-loop slew speed for the target rate: rate = face height x cut x lateral speed,
+    the cut across the face being cut_depth x |cos(slew)|."""
+
+    volume_rate: float  # m^3/s, the target
+    law: str  # "cosine" or "constant"
+    cap: float  # rad: the cosine law holds its speed beyond it
+    rated: float  # rad/s, the slew drive's rated speed
+
+    def speed(self, p: Pass, slew: float) -> float:
+        """rad/s at `slew` in pass p, before any trim."""
+        angle = slew if self.law == "cosine" else 0.5 * (p.cut[0] + p.cut[1])
+        cosine = max(abs(np.cos(angle)), np.cos(self.cap))
+        return self.volume_rate / (p.face_height * p.cut_depth * cosine * p.radius)
+
+
+@dataclass(frozen=True)
+class BenchPlan:
+    """The segments of a bench reclaim and what the planner predicts of them."""
+
+    segments: tuple[Move | Pass, ...]
+    start: np.ndarray  # (3,) where the machine stands at t = 0
+    law: SpeedLaw
+    acceleration: np.ndarray  # (3,) m/s^2, rad/s^2, rad/s^2
+    rated_speed: np.ndarray  # (3,) m/s, rad/s, rad/s
+    first_contact: np.ndarray | None  # (3,) world m: where the wheel first touches the pile
+    bench_volumes: tuple[float, ...]  # m^3 predicted per bench
+    density: float  # kg/m^3
+    nominal_duration: float  # s, open loop
+    longest_duration: float  # s: the slowest any rate control may make it (trims at their low limit)
+
+    @property
+    def passes(self) -> list[Pass]:
+        return [s for s in self.segments if isinstance(s, Pass)]
+
+    @property
+    def benches(self) -> int:
+        return len(self.bench_volumes)
+
+    def bench_tonnes(self) -> list[float]:
+        return [v * self.density / KG_PER_T for v in self.bench_volumes]
+
+
+def plan_scene(scene: Scene) -> BenchPlan:
+    """The bench plan of a scene with [reclaim], on its pile and machine (with its payloads);
+    SceneError naming the key and the limit if it cannot be done. Planned once per scene."""
+    return _plan(scene.reclaim, scene.stockpile, scene.machine.mjcf, scene.plant.payload,
+                 scene.simulation.control_period, scene.path)
+
+
+@functools.lru_cache(maxsize=8)
+def _plan(reclaim: ReclaimSection, stockpile: StockpileSection, mjcf: Path, payload: tuple, period: float,
+          scene_path: Path) -> BenchPlan:
+    machine = Machine(mjcf, payloads=payload)
+    surface = build_surface(stockpile, scene_path)
+    where = f"{scene_path}: [reclaim]"
+    return _Planner(reclaim, machine, surface, stockpile.bulk_density, period, where).plan()
+
+
+class _Planner:
+    def __init__(self, settings: ReclaimSection, machine: Machine, surface: Surface, density: float,
+                 period: float, where: str):
+        self.s, self.machine, self.surface, self.density, self.period = settings, machine, surface, density, period
+        self.where = where
+        wheel = machine.wheel
+        if wheel is None:
+            raise SceneError(f"{where}: {machine.path.name} describes no bucket wheel: it cannot reclaim")
+        self.wheel = wheel
+        self.acceleration = np.array([settings.acceleration[0], *np.radians(settings.acceleration[1:])])
+        self.rated = machine.rated_speed
+        self.slew_limits = tuple(np.radians(settings.slew_limits))
+        self.start = np.array([settings.start[0], *np.radians(settings.start[1:])])
+        self._check_settings()
+        self.law = SpeedLaw(settings.target_rate * KG_PER_T / SECONDS_PER_HOUR / density, settings.speed_law,
+                            np.radians(settings.cap_angle), float(self.rated[1]))
+        self.dig = Cutter(surface, wheel, 1)  # the planner's copy of the pile, dug as it plans
+        self.top = float(surface.z.max())
+        g = machine.geometry
+        cp0 = machine.fk(self.start)
+        centre = float(np.average(surface.x, weights=np.maximum(surface.z, 0).sum(axis=0) + 1e-12))
+        self.ahead = 1.0 if centre >= cp0[0] else -1.0  # the travel's direction into the pile
+        self.slew_axis = np.array(g.slew_axis_xy)
+        self.first_contact: np.ndarray | None = None
+
+    # -- refusals that need no pile -----------------------------------------------------------
+
+    def _check_settings(self) -> None:
+        s, wheel, where, machine = self.s, self.wheel, self.where, self.machine
+        if s.bench_height > MAX_BENCH_SHARE * wheel.diameter + 1e-9:
+            raise SceneError(
+                f"{where}: 'bench_height' {s.bench_height:g} m is more than {MAX_BENCH_SHARE:g} x the wheel's "
+                f"{wheel.diameter:g} m diameter ({MAX_BENCH_SHARE * wheel.diameter:g} m): the buckets would not "
+                "clear the face"
+            )
+        capacity = wheel.capacity * self.density * SECONDS_PER_HOUR / KG_PER_T
+        if s.target_rate > capacity:
+            raise SceneError(
+                f"{where}: 'target_rate' {s.target_rate:,.0f} t/h is beyond the wheel's capacity of {capacity:,.0f} "
+                f"t/h ({wheel.discharges_per_minute:g} discharges a minute of {wheel.bucket_volume:g} m3 buckets, "
+                f"at {self.density:g} kg/m3)"
+            )
+        if s.cut_depth > wheel.radius:
+            raise SceneError(f"{where}: 'cut_depth' {s.cut_depth:g} m is more than the wheel's radius "
+                             f"{wheel.radius:g} m")
+        low, high = machine.envelope[1]
+        for value, label in zip(self.slew_limits, ("low", "high")):
+            if not low - 1e-9 <= value <= high + 1e-9:
+                raise SceneError(f"{where}: 'slew_limits' ({label}) {np.degrees(value):g} deg is outside the slew "
+                                 f"envelope [{describe(1, low)}, {describe(1, high)}] of {machine.path.name}")
+        try:
+            machine.check_envelope(self.start, label="'start'")
+        except EnvelopeError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+        self._check_drives()
+
+    def _check_drives(self) -> None:
+        """The references' accelerations, held against gravity at the start, within each drive's rating."""
+        machine, where = self.machine, self.where
+        model = machine.physics_model(rigid_body_only=True)
+        data = mujoco.MjData(model)
+        data.qpos[:] = self.start
+        mujoco.mj_forward(model, data)
+        mass = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, mass)
+        for j, axis in enumerate(AXES):
+            need = mass[j, j] * self.acceleration[j]
+            low, high = machine.drive_limits[j]
+            bias = data.qfrc_bias[j]
+            if bias + need > high or bias - need < low:
+                unit = "m/s2" if j == 0 else "deg/s2"
+                shown = self.acceleration[j] if j == 0 else np.degrees(self.acceleration[j])
+                raise SceneError(
+                    f"{where}: 'acceleration' ({axis}) {shown:g} {unit} needs {need:.3g} {'N' if j == 0 else 'N m'} "
+                    f"on top of {bias:.3g} of gravity, beyond the {axis} drive's rating [{low:.3g}, {high:.3g}]"
+                )
+
+    # -- the plan -----------------------------------------------------------------------------
+
+    def plan(self) -> BenchPlan:
+        s = self.s
+        segments: list[Move | Pass] = []
+        volumes: list[float] = []
+        q = self.start
+        nominal = 0.0
+        stop = s.stop
+        bench = 0
+        while True:
+            if stop.benches is not None and bench == stop.benches:
+                break
+            tonnes = sum(volumes) * self.density / KG_PER_T
+            if stop.tonnes is not None and tonnes >= stop.tonnes:
+                break
+            if stop.time is not None and nominal >= stop.time:
+                break
+            planned = self._bench(bench, q, len([x for x in segments if isinstance(x, Pass)]))
+            if planned is None:  # nothing left within reach
+                if stop.benches is not None or bench == 0:
+                    raise SceneError(self._nothing_left(bench))
+                if stop.tonnes is not None:
+                    raise SceneError(f"{self.where}: the pile within reach holds {tonnes:,.0f} t in {bench} "
+                                     f"bench(es), less than 'stop.tonnes' {stop.tonnes:,.0f} t")
+                break
+            bench_segments, volume = planned
+            segments += bench_segments
+            volumes.append(volume)
+            nominal += sum(self._nominal_time(x) for x in bench_segments)
+            q = _end_of(bench_segments[-1])
+            bench += 1
+        low_trim = s.rate_control.trim_limits[0]
+        ramp = self._fastest(self.start[2]) / self.acceleration[1]  # s to reach or leave the fastest slew
+        longest = sum(x.duration if isinstance(x, Move) else self._nominal_time(x) / low_trim + 2 * ramp
+                      for x in segments)
+        if stop.time is not None:
+            longest = min(longest, stop.time + ramp + self.period)
+            nominal = min(nominal, stop.time)
+        return BenchPlan(tuple(segments), self.start, self.law, self.acceleration, self.rated, self.first_contact,
+                         tuple(volumes), self.density, nominal, longest + self.period)
+
+    def _nothing_left(self, bench: int) -> str:
+        return (f"{self.where}: bench {bench + 1} (floor at {self._floor(bench):.2f} m) finds no pile within "
+                f"'slew_limits' {list(self.s.slew_limits)} deg along the travel envelope from 'start'")
+
+    def _floor(self, bench: int) -> float:
+        return self.top - (bench + 1) * self.s.bench_height
+
+    def _bench(self, bench: int, q: np.ndarray, passes_before: int) -> tuple[list[Move | Pass], float] | None:
+        """The segments of one bench from q, and the volume they cut; None if the bench has no pile."""
+        s, wheel = self.s, self.wheel
+        floor = self._floor(bench)
+        if floor < float(self.surface.z.min()) - 1e-9 and bench > 0:
+            return None  # down to the ground
+        luff = self._luff_for(floor + wheel.radius, bench)
+        landing = self._landing(luff, bench)
+        if landing is None:
+            return None
+        count = max(int(round(s.bench_length / s.cut_depth)), 1)
+        travels = [landing + self.ahead * s.cut_depth * (i + 1) for i in range(count)]
+        windows = []
+        for travel in travels:
+            self._check_travel(travel, bench)
+            window = self._window(travel, luff)
+            if window is None:
+                break  # the pile ends along the rail
+            windows.append(window)
+        if not windows:
+            return None
+        travels = travels[: len(windows)]
+        ascending = abs(q[1] - self.slew_limits[0]) <= abs(q[1] - self.slew_limits[1])
+        # Each pass turns beyond the edges of both passes that meet there.
+        margin = self._margin(luff)
+        turns = []
+        for i in range(len(windows) + 1):
+            up = ascending if i % 2 == 0 else not ascending  # the direction of pass i (or the last one's end)
+            near = [w for w in windows[max(i - 1, 0) : i + 1]]
+            if up:
+                turn = min(w[0] for w in near) - margin
+            else:
+                turn = max(w[1] for w in near) + margin
+            turns.append(float(np.clip(turn, *self.slew_limits)))
+        segments: list[Move | Pass] = []
+        volume = 0.0
+        # Onto the bench: from the last bench, slew clear, then travel and luff together.
+        target = np.array([travels[0], turns[0], luff])
+        if bench == 0:
+            segments.append(self._move(q, target, bench, "approach"))
+        else:
+            clear = np.array([q[0], turns[0], q[2]])
+            segments.append(self._move(q, clear, bench, "slew clear"))
+            segments.append(self._move(clear, target, bench, "step down"))
+        for segment in segments:
+            volume += self._dig_move(segment)
+        for i, travel in enumerate(travels):
+            start, end = turns[i], turns[i + 1]
+            if i > 0:
+                step = self._move(np.array([travels[i - 1], start, luff]), np.array([travel, start, luff]), bench,
+                                  "travel step")
+                segments.append(step)
+                volume += self._dig_move(step)
+            p = self._dig_pass(travel, luff, start, end, bench, passes_before + i + 1)
+            segments.append(p)
+            volume += p.volume
+        return segments, volume
+
+    def _luff_for(self, height: float, bench: int) -> float:
+        """The luff that puts the wheel's centre at `height`; SceneError if the envelope has none."""
+        g, machine = self.machine.geometry, self.machine
+        ratio = (height - g.pivot_height) / g.boom_length
+        low, high = machine.envelope[2]
+        luff = float(np.arcsin(ratio)) - g.boom_angle0 if abs(ratio) <= 1 else np.inf * np.sign(ratio)
+        if not low - 1e-9 <= luff <= high + 1e-9:
+            reach = (g.pivot_height + g.boom_length * np.sin(g.boom_angle0 + np.array([low, high]))
+                     - self.wheel.radius)
+            raise SceneError(
+                f"{self.where}: bench {bench + 1}'s floor at {height - self.wheel.radius:.2f} m (pile top "
+                f"{self.top:.2f} m less {bench + 1} x 'bench_height' {self.s.bench_height:g} m) is out of the "
+                f"wheel's reach: the luff envelope puts the wheel's lowest point between {reach[0]:.2f} and "
+                f"{reach[1]:.2f} m"
+            )
+        return luff
+
+    def _check_travel(self, travel: float, bench: int) -> None:
+        low, high = self.machine.envelope[0]
+        if not low - 1e-9 <= travel <= high + 1e-9:
+            raise SceneError(f"{self.where}: bench {bench + 1} needs travel {travel:.2f} m, outside the travel "
+                             f"envelope [{low:g}, {high:g}] m of {self.machine.path.name}")
+
+    def _radius(self, luff: float) -> float:
+        """m from the slew axis to the wheel's centre at `luff`."""
+        return float(np.hypot(*(self.machine.fk(np.array([0.0, 0.0, luff]))[:2] - self.slew_axis)))
+
+    def _fastest(self, luff: float) -> float:
+        """rad/s: the fastest slew a trimmed speed law may ask at `luff` (the law at its cap)."""
+        at_cap = self.law.volume_rate / (self.s.bench_height * self.s.cut_depth * np.cos(self.law.cap)
+                                         * self._radius(luff))
+        return min(self.law.rated, at_cap * self.s.rate_control.trim_limits[1])
+
+    def _margin(self, luff: float) -> float:
+        """rad beyond a pass's cut: room to reach the fastest speed, and some clearance."""
+        return self._fastest(luff) ** 2 / (2 * self.acceleration[1]) + CLEARANCE / self._radius(luff)
+
+    def _arc(self, travel: float, luff: float, start: float, end: float, step: float) -> tuple[np.ndarray, np.ndarray]:
+        """Joint values (n, 3) and CP (n, 3) along a slew from start to end, the wheel moving `step` m apart."""
+        cp = self.machine.fk(np.array([travel, start, luff]))
+        radius = float(np.hypot(*(cp[:2] - self.slew_axis - [travel, 0.0])))
+        count = max(int(np.ceil(abs(end - start) * radius / step)), 1) + 1
+        q = np.column_stack([np.full(count, travel), np.linspace(start, end, count), np.full(count, luff)])
+        return q, self.machine.fk(q)
+
+    def _probe(self, travel: float, luff: float) -> np.ndarray:
+        """Slew angles across the slew limits at which the wheel would cut the planner's pile (not dug)."""
+        q, cp = self._arc(travel, luff, *self.slew_limits, PROBE_STEP)
+        probe = Cutter(Surface(self.surface.x, self.surface.y, self.dig.heights[0]), self.wheel, 1)
+        cutting = np.zeros(len(q), dtype=bool)
+        for i in range(len(q)):
+            cutting[i] = probe.cut(cp[i : i + 1], q[i : i + 1, 1]).volume[0] > 0
+        return q[cutting, 1]
+
+    def _window(self, travel: float, luff: float) -> tuple[float, float] | None:
+        angles = self._probe(travel, luff)
+        return (float(angles.min()), float(angles.max())) if angles.size else None
+
+    def _landing(self, luff: float, bench: int) -> float | None:
+        """The travel at which a slew across the limits first touches the pile: clear behind it,
+        in the pile ahead of it; None if the wheel meets no pile along the envelope."""
+        low, high = self.machine.envelope[0]
+        clear = float(self.start[0])
+        if self._window(clear, luff) is not None:
+            raise SceneError(
+                f"{self.where}: at 'start' travel {clear:g} m the wheel would already cut the pile on bench "
+                f"{bench + 1}: start farther from the pile"
+            )
+        deep = clear
+        while True:
+            deep += self.ahead * SEARCH_STEP
+            if not low <= deep <= high:
+                return None
+            if self._window(deep, luff) is not None:
+                break
+            clear = deep
+        while abs(deep - clear) > LANDING_TOLERANCE:
+            middle = 0.5 * (clear + deep)
+            if self._window(middle, luff) is None:
+                clear = middle
+            else:
+                deep = middle
+        return clear
+
+    # -- digging the planner's pile -----------------------------------------------------------
+
+    def _cut(self, q: np.ndarray, cp: np.ndarray) -> np.ndarray:
+        """Dig the planner's pile along joint values q (n, 3); the volume each one cuts (n,)."""
+        volumes = np.zeros(len(q))
+        for i in range(len(q)):
+            cut = self.dig.cut(cp[i : i + 1], q[i : i + 1, 1])
+            volumes[i] = cut.volume[0]
+            if volumes[i] > 0 and self.first_contact is None:
+                self.first_contact = cp[i].copy()
+        return volumes
+
+    def _dig_move(self, move: Move) -> float:
+        path = np.abs(self.machine.fk(move.end) - self.machine.fk(move.start)).sum()
+        count = max(int(np.ceil(path / DIG_STEP)), 1) + 1
+        q = np.array([move.sample(t)[0] for t in np.linspace(0.0, move.duration, count)])
+        return float(self._cut(q, self.machine.fk(q)).sum())
+
+    def _dig_pass(self, travel: float, luff: float, start: float, end: float, bench: int, number: int) -> Pass:
+        q, cp = self._arc(travel, luff, start, end, DIG_STEP)
+        volumes = self._cut(q, cp)
+        slew = q[:, 1]
+        cutting = np.flatnonzero(volumes > 0)
+        height = min(self.s.bench_height, self.top - self._floor(bench))
+        radius = float(np.hypot(*(cp[0, :2] - self.slew_axis - [travel, 0.0]))) + self._face_offset(height)
+        cut = (float(slew[cutting[0]]), float(slew[cutting[-1]])) if cutting.size else (start, start)
+        p = Pass(travel=travel, luff=luff, start=start, end=end, bench=bench, number=number, cut=cut, steady=None,
+                 face_height=height, cut_depth=self.s.cut_depth, radius=radius, volume=float(volumes.sum()))
+        # Steady cutting: where the face's section (averaged over SMOOTHING of the wheel's motion)
+        # is the full one, the bench's height x the cut across the face, cut_depth x |cos(slew)|.
+        window = max(int(round(SMOOTHING / DIG_STEP)), 1)
+        moved = abs(slew[1] - slew[0]) * radius if len(slew) > 1 else DIG_STEP
+        section = np.convolve(volumes, np.ones(window) / window, mode="same") / moved
+        steady = _longest_run(section >= FULL_FACE * height * self.s.cut_depth * np.abs(np.cos(slew)))
+        if steady is None:
+            return p
+        return replace(p, steady=(float(slew[steady[0]]), float(slew[steady[1]])))
+
+    def _face_offset(self, height: float) -> float:
+        """How far beyond the wheel's centre, along the boom, the face's centre of area lies: the
+        mean over the bench's height of the wheel circle's half chord."""
+        r = self.wheel.radius
+        y = np.linspace(0.0, height, 201)
+        return float(np.mean(np.sqrt(np.maximum(r**2 - (r - y) ** 2, 0.0))))
+
+    # -- timing -------------------------------------------------------------------------------
+
+    def _move(self, start: np.ndarray, end: np.ndarray, bench: int, kind: str) -> Move:
+        """A cubic from start to end, as fast as the rated speeds and the accelerations allow: a
+        cubic's top speed is 1.5 x delta / T and its top acceleration 6 x delta / T^2."""
+        delta = np.abs(end - start)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            duration = max(MIN_MOVE, float(np.max(np.nan_to_num(1.5 * delta / self.rated))),
+                           float(np.max(np.sqrt(6 * delta / self.acceleration))))
+        duration = np.ceil(duration / self.period - 1e-9) * self.period
+        return Move(start.copy(), end.copy(), float(duration), bench, kind)
+
+    def _nominal_time(self, segment: Move | Pass) -> float:
+        if isinstance(segment, Move):
+            return segment.duration
+        angles = np.linspace(segment.start, segment.end, 400)
+        speeds = np.minimum([self.law.speed(segment, a) for a in angles], self.law.rated)
+        ramp = speeds.max() / self.acceleration[1]  # s: speeding up and braking take about one ramp more
+        return float(np.trapezoid(1.0 / speeds, angles) * segment.direction) + ramp
+
+
+def _end_of(segment: Move | Pass) -> np.ndarray:
+    if isinstance(segment, Move):
+        return segment.end
+    return np.array([segment.travel, segment.end, segment.luff])
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int] | None:
+    """First and last index of the longest run of True in mask, or None."""
+    if not mask.any():
+        return None
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    starts, ends = edges[::2], edges[1::2]
+    longest = int(np.argmax(ends - starts))
+    return int(starts[longest]), int(ends[longest] - 1)

@@ -1,0 +1,210 @@
+"""References for a lockstep's runs, one control period at a time.
+
+`PathReference` is a scene's via-point path, sampled once for every run. `BenchReference`
+follows a bench plan (bwr_twin.planning.bench) for each run on its own: moves are sampled from
+their cubics; a slew pass's speed is decided every period from the speed law times the run's rate
+trim, reached and left within the slew acceleration and the rated speed, and braked to rest
+exactly at the pass's end. The slew reference's acceleration is constant over a period, so its
+position, velocity and acceleration agree exactly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from bwr_twin.planning.bench import BenchPlan, Move, Pass
+from bwr_twin.planning.trajectory import Trajectory
+
+SLEW = 1
+END_TOLERANCE = 1e-9  # rad short of a pass's end that counts as there (55 nm at 55 m)
+
+
+@dataclass(frozen=True)
+class Phase:
+    """Where each run stands in a bench plan this control period; (runs,) arrays."""
+
+    bench: np.ndarray  # 0-based
+    cutting: np.ndarray  # bool: in a slew pass, within its predicted cut
+    steady: np.ndarray  # bool: in a slew pass, where its face stands at its full section
+    planned_depth: np.ndarray  # m across the face the pass plans to cut here (nan outside a pass)
+
+
+class PathReference:
+    """The via-point path, the same for every run: `q`, `qd`, `qdd` are (3,) rows of period k."""
+
+    def __init__(self, trajectory: Trajectory, period: float):
+        self.trajectory = trajectory
+        self.samples = round(trajectory.duration / period) + 1
+        self.time = trajectory.times[0] + np.arange(self.samples) * period
+        self.q_desired, self.qd_desired, self.qdd_desired = trajectory.sample(self.time)
+        self.start = trajectory.knots[0]
+        self.finished = False
+        self.k = 0
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.q_desired[self.k]
+
+    @property
+    def qd(self) -> np.ndarray:
+        return self.qd_desired[self.k]
+
+    @property
+    def qdd(self) -> np.ndarray:
+        return self.qdd_desired[self.k]
+
+    def advance(self, trim: np.ndarray | None = None, stop: np.ndarray | None = None) -> None:
+        self.k += 1
+
+    def waypoints(self, run: int) -> Trajectory:
+        return self.trajectory
+
+
+class BenchReference:
+    """Each run's place in a bench plan and its reference for the current control period.
+
+    Attributes:
+        q, qd, qdd: (runs, 3) the reference of the current period (m, rad; /s; /s^2).
+        segment: (runs,) index into plan.segments; len(segments) once a run is finished.
+        finished: (runs,) bool: the run has completed its plan (or stopped) and rests.
+    """
+
+    def __init__(self, plan: BenchPlan, runs: int, period: float, fk: Callable[[np.ndarray], np.ndarray]):
+        """`fk` maps joint values to the CP, for the waypoints."""
+        self.plan, self.runs, self.period, self._fk = plan, runs, period, fk
+        self.start = plan.start
+        self.samples = int(np.ceil(plan.longest_duration / period - 1e-9)) + 1
+        self.time = np.arange(self.samples) * period
+        self.q = np.repeat(plan.start[None], runs, axis=0)
+        self.qd = np.zeros((runs, 3))
+        self.qdd = np.zeros((runs, 3))
+        self.segment = np.zeros(runs, dtype=np.int64)
+        self.elapsed = np.zeros(runs)  # s into the current move
+        self.stopping = np.zeros(runs, dtype=bool)
+        self.finished = np.zeros(runs, dtype=bool)
+        self.k = 0
+        self._started = [[(0.0, plan.start.copy())] for _ in range(runs)]  # (time, q) at each segment's start
+        self._slew_acceleration = float(plan.acceleration[SLEW])
+        self._top = float(plan.rated_speed[SLEW])
+        self._trim = np.ones(runs)
+        for run in range(runs):
+            self._plan_period(run)
+
+    @property
+    def bench(self) -> np.ndarray:
+        """(runs,) 0-based bench of each run's current segment (its last once finished)."""
+        last = len(self.plan.segments) - 1
+        return np.array([self.plan.segments[min(s, last)].bench for s in self.segment])
+
+    def phase(self) -> Phase:
+        """Where every run stands in its plan this period."""
+        phase = Phase(self.bench, np.zeros(self.runs, dtype=bool), np.zeros(self.runs, dtype=bool),
+                      np.full(self.runs, np.nan))
+        for run in range(self.runs):
+            p = self.current_pass(run)
+            if p is None:
+                continue
+            slew = self.q[run, SLEW]
+            phase.cutting[run] = p.within(slew, p.cut)
+            phase.steady[run] = p.within(slew, p.steady)
+            phase.planned_depth[run] = p.cut_depth * abs(np.cos(slew))
+        return phase
+
+    def current_pass(self, run: int) -> Pass | None:
+        if self.finished[run]:
+            return None
+        segment = self.plan.segments[self.segment[run]]
+        return segment if isinstance(segment, Pass) else None
+
+    def advance(self, trim: np.ndarray | None = None, stop: np.ndarray | None = None) -> None:
+        """Move every run on by one control period; `trim` (runs,) scales the speed law from now
+        on, `stop` (runs,) bool ends a run's plan: a pass brakes to rest, a move is completed."""
+        if trim is not None:
+            self._trim = trim
+        if stop is not None:
+            self.stopping |= stop
+        self.k += 1
+        for run in range(self.runs):
+            if self.finished[run]:
+                continue
+            segment = self.plan.segments[self.segment[run]]
+            if isinstance(segment, Move):
+                self.elapsed[run] += self.period
+                if self.elapsed[run] >= segment.duration - 1e-9:
+                    self._next(run, segment.end)
+            else:
+                q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
+                slew = q[SLEW] + qd[SLEW] * self.period + 0.5 * qdd[SLEW] * self.period**2
+                speed = qd[SLEW] + qdd[SLEW] * self.period
+                q[SLEW], qd[SLEW] = slew, speed
+                if (segment.end - slew) * segment.direction <= END_TOLERANCE or (self.stopping[run] and speed == 0.0):
+                    q[SLEW] = segment.end if not self.stopping[run] else slew
+                    self._next(run, q.copy())
+            if not self.finished[run]:
+                self._plan_period(run)
+
+    def _next(self, run: int, at: np.ndarray) -> None:
+        """Run `run` has completed its segment at joint values `at`: on to the next, or rest."""
+        self.segment[run] += 1
+        self.elapsed[run] = 0.0
+        self.q[run] = at
+        self.qd[run] = 0.0
+        self.qdd[run] = 0.0
+        if self.segment[run] >= len(self.plan.segments) or self.stopping[run]:
+            self.finished[run] = True
+            self.segment[run] = len(self.plan.segments)
+        self._started[run].append((self.k * self.period, at.copy()))
+
+    def _plan_period(self, run: int) -> None:
+        """The reference of the current period for run `run`, within its segment."""
+        segment = self.plan.segments[self.segment[run]]
+        if isinstance(segment, Move):
+            self.q[run], self.qd[run], self.qdd[run] = segment.sample(self.elapsed[run])
+            return
+        q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
+        direction, a, dt = segment.direction, self._slew_acceleration, self.period
+        if self.stopping[run]:
+            wanted = 0.0
+        else:
+            remaining = max((segment.end - q[SLEW]) * direction, 0.0)
+            law = self.plan.law.speed(segment, q[SLEW]) * self._trim[run]
+            brake = np.sqrt(2.0 * a * remaining)
+            wanted = min(law, self._top, brake)
+            # Land on the end: never step past it within this period.
+            wanted = min(wanted, 2.0 * remaining / dt - abs(qd[SLEW]))
+            wanted = max(wanted, 0.0)
+        change = np.clip(direction * wanted - qd[SLEW], -a * dt, a * dt)
+        if self.stopping[run] and abs(qd[SLEW]) <= a * dt:
+            change = -qd[SLEW]
+        qdd[:] = 0.0
+        qdd[SLEW] = change / dt
+
+    def waypoints(self, run: int) -> Trajectory:
+        """Where run `run` began each segment (and where it ended): its reclaim as via points."""
+        times = np.array([t for t, _ in self._started[run]])
+        knots = np.array([q for _, q in self._started[run]])
+        if not self.finished[run]:
+            times, knots = np.append(times, self.k * self.period), np.vstack([knots, self.q[run]])
+        keep = np.concatenate([[True], np.diff(times) > 0])  # a zero-length segment adds no point
+        return Trajectory(times=times[keep], knots=knots[keep], points=self._fk(knots[keep]))
+
+
+def nominal(plan: BenchPlan, period: float, fk: Callable[[np.ndarray], np.ndarray], every: int = 1,
+            stop_time: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, Trajectory]:
+    """The plan followed open loop (no trim) by one run: times (n,), q and qd (n, 3) every `every`
+    control periods, and its waypoints; what a replay shows before the run is simulated."""
+    reference = BenchReference(plan, 1, period, fk)
+    stop = np.ones(1, dtype=bool)
+    rows = []
+    while True:
+        if reference.k % every == 0 or reference.finished[0]:
+            rows.append((reference.k * period, reference.q[0].copy(), reference.qd[0].copy()))
+        if reference.finished[0] or reference.k >= reference.samples - 1:
+            break
+        halt = stop_time is not None and (reference.k + 1) * period >= stop_time - 1e-9
+        reference.advance(None, stop if halt else None)
+    time = np.array([t for t, _, _ in rows])
+    return time, np.array([q for _, q, _ in rows]), np.array([v for _, _, v in rows]), reference.waypoints(0)
