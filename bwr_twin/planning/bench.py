@@ -333,9 +333,24 @@ class _Planner:
                 segments.append(step)
                 volume += self._dig_move(step)
             p = self._dig_pass(travel, luff, start, end, bench, passes_before + i + 1)
+            self._check_speed(p)
             segments.append(p)
             volume += p.volume
         return segments, volume
+
+    def _check_speed(self, p: Pass) -> None:
+        """The speed law within the slew drive's rating wherever the pass cuts."""
+        angles = np.linspace(*p.cut, 50)
+        speeds = np.array([self.law.speed(p, a) for a in angles])
+        worst = int(np.argmax(speeds))
+        if speeds[worst] > self.law.rated * (1 + 1e-9):
+            raise SceneError(
+                f"{self.where}: 'target_rate' {self.s.target_rate:,.0f} t/h needs a slew speed of "
+                f"{np.degrees(speeds[worst]):.3f} deg/s at slew {np.degrees(angles[worst]):.1f} deg (pass "
+                f"{p.number}, bench {p.bench + 1}), beyond the slew drive's rated "
+                f"{np.degrees(self.law.rated):.3f} deg/s: lower 'target_rate', or raise 'cut_depth' or "
+                "'bench_height', or narrow 'slew_limits'"
+            )
 
     def _luff_for(self, height: float, bench: int) -> float:
         """The luff that puts the wheel's centre at `height`; SceneError if the envelope has none."""
