@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run dig test test-quick bench bench-replay bench-batch bench-gym bench-opcua clean
+.PHONY: setup run dig reclaim test test-quick bench bench-replay bench-batch bench-gym bench-opcua clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ run: setup
 
 dig: setup
 	$(PY) -m bwr_twin.replay heavy_dig_pile
+
+reclaim: setup
+	$(PY) -m bwr_twin.replay heavy_bench_reclaim
 
 test: setup
 	$(PY) -m pytest

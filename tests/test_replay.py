@@ -224,10 +224,14 @@ def test_close_via_points_share_one_label_and_each_is_named_once(paper_machine):
 def test_slider_labels_via_points_that_do_not_crowd_each_other():
     from bwr_twin.replay.app import via_point_marks
 
-    assert via_point_marks([0.0, 200.0, 300.0, 500.0, 700.0]) == tuple(
+    names = [f"P{i + 1}" for i in range(5)]
+    assert via_point_marks([0.0, 200.0, 300.0, 500.0, 700.0], names) == tuple(
         (t, f"P{i + 1}") for i, t in enumerate([0.0, 200.0, 300.0, 500.0, 700.0])
     )
-    assert via_point_marks([0.0, 620.0, 680.0, 1680.0]) == ((0.0, "P1"), (620.0, "P2"), 680.0, (1680.0, "P4"))
+    assert via_point_marks([0.0, 620.0, 680.0, 1680.0], names) == ((0.0, "P1"), (620.0, "P2"), 680.0, (1680.0, "P4"))
+    # A bench plan's unnamed via points (travel steps) are marked, never labelled.
+    assert via_point_marks([0.0, 100.0, 900.0], ["bench 1", "", "pass 1"]) == ((0.0, "bench 1"), 100.0,
+                                                                               (900.0, "pass 1"))
 
 
 # -- recordings, readout, charts --------------------------------------------------------------

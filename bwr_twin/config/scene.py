@@ -306,7 +306,7 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
     if named is not None and named != _controller_type(base_raw):
         merged["controller"] = raw["controller"]  # another controller: none of the base's settings
     for motion, other in (("path", "reclaim"), ("reclaim", "path")):
-        if motion in raw:
+        if motion in raw and other not in raw:
             merged.pop(other, None)  # a path replaces its base's reclaim plan, and a plan its base's path
     return merged
 
@@ -592,6 +592,12 @@ def _check_reclaim(scene: Scene) -> None:
     if not value > 0:
         raise SceneError(f"{p}: 'reclaim.stop.{key}' must be > 0, got {value}")
     control = r.rate_control
+    from bwr_twin.control.rate import rate_control_class
+
+    try:
+        rate_control_class(control.type)
+    except SceneError as exc:
+        raise SceneError(f"{p}: {exc}") from None
     if not control.gain >= 0:
         raise SceneError(f"{p}: 'reclaim.rate_control.gain' must be >= 0, got {control.gain}")
     for key in ("integral_time", "filter_time"):

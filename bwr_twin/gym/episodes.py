@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.errors import SceneError
 from bwr_twin.gym.actions import make_drive
 from bwr_twin.gym.reward import tracking_reward
 from bwr_twin.gym.scales import OBSERVATION_SIZE, Scales
@@ -83,7 +84,11 @@ class Episodes:
         if self.weights.shape != (3,) or not (self.weights >= 0).all():
             raise ValueError(f"reward_weights must be 3 numbers >= 0 (travel, slew, luff), got {reward_weights!r}")
         # A lockstep of the scene as written: its machine and path set the scales and the drive.
-        first = Lockstep([load_scene(self.scene, self.overrides)], nthread=1)
+        scene = load_scene(self.scene, self.overrides)
+        if scene.reclaim is not None:
+            raise SceneError(f"{scene.path}: bwr_twin/Reclaim-v0 follows a scene's [path]; this scene plans a "
+                             "[reclaim], whose reference is decided as the run goes: give a scene with a [path]")
+        first = Lockstep([scene], nthread=1)
         self.scales = Scales.of(first, error_scale)
         self.period = first.period
         self.envelope = first.machine.envelope

@@ -223,11 +223,12 @@ class _Planner:
             low, high = machine.drive_limits[j]
             bias = data.qfrc_bias[j]
             if bias + need > high or bias - need < low:
-                unit = "m/s2" if j == 0 else "deg/s2"
+                unit, force = ("m/s2", "N") if j == 0 else ("deg/s2", "N m")
                 shown = self.acceleration[j] if j == 0 else np.degrees(self.acceleration[j])
+                held = f" on top of {abs(bias):.3g} {force} against gravity" if abs(bias) > 1e-6 * need else ""
                 raise SceneError(
-                    f"{where}: 'acceleration' ({axis}) {shown:g} {unit} needs {need:.3g} {'N' if j == 0 else 'N m'} "
-                    f"on top of {bias:.3g} of gravity, beyond the {axis} drive's rating [{low:.3g}, {high:.3g}]"
+                    f"{where}: 'acceleration' ({axis}) {shown:g} {unit} needs {need:.3g} {force}{held} at 'start', "
+                    f"beyond the {axis} drive's rating [{low:.3g}, {high:.3g}] {force}"
                 )
 
     # -- the plan -----------------------------------------------------------------------------

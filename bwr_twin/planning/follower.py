@@ -59,8 +59,8 @@ class PathReference:
     def advance(self, trim: np.ndarray | None = None, stop: np.ndarray | None = None) -> None:
         self.k += 1
 
-    def waypoints(self, run: int) -> Trajectory:
-        return self.trajectory
+    def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
+        return self.trajectory, [f"P{i + 1}" for i in range(len(self.trajectory.times))]
 
 
 class BenchReference:
@@ -86,7 +86,8 @@ class BenchReference:
         self.stopping = np.zeros(runs, dtype=bool)
         self.finished = np.zeros(runs, dtype=bool)
         self.k = 0
-        self._started = [[(0.0, plan.start.copy())] for _ in range(runs)]  # (time, q) at each segment's start
+        # (time, q, name) at each segment's start, and at the end
+        self._started = [[(0.0, plan.start.copy(), segment_name(plan, 0))] for _ in range(runs)]
         self._slew_acceleration = float(plan.acceleration[SLEW])
         self._top = float(plan.rated_speed[SLEW])
         self._trim = np.ones(runs)
@@ -156,7 +157,7 @@ class BenchReference:
         if self.segment[run] >= len(self.plan.segments) or self.stopping[run]:
             self.finished[run] = True
             self.segment[run] = len(self.plan.segments)
-        self._started[run].append((self.k * self.period, at.copy()))
+        self._started[run].append((self.k * self.period, at.copy(), segment_name(self.plan, self.segment[run])))
 
     def _plan_period(self, run: int) -> None:
         """The reference of the current period for run `run`, within its segment."""
@@ -171,7 +172,10 @@ class BenchReference:
         else:
             remaining = max((segment.end - q[SLEW]) * direction, 0.0)
             law = self.plan.law.speed(segment, q[SLEW]) * self._trim[run]
-            brake = np.sqrt(2.0 * a * remaining)
+            # The fastest speed at the period's end from which braking at `a` still stops at the
+            # pass's end: v^2 <= 2 a (remaining - (|qd| + v) dt / 2).
+            rest = remaining - 0.5 * abs(qd[SLEW]) * dt
+            brake = 0.5 * (np.sqrt((a * dt) ** 2 + 8.0 * a * max(rest, 0.0)) - a * dt)
             wanted = min(law, self._top, brake)
             # Land on the end: never step past it within this period.
             wanted = min(wanted, 2.0 * remaining / dt - abs(qd[SLEW]))
@@ -182,20 +186,36 @@ class BenchReference:
         qdd[:] = 0.0
         qdd[SLEW] = change / dt
 
-    def waypoints(self, run: int) -> Trajectory:
-        """Where run `run` began each segment (and where it ended): its reclaim as via points."""
-        times = np.array([t for t, _ in self._started[run]])
-        knots = np.array([q for _, q in self._started[run]])
+    def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
+        """Where run `run` began each segment (and where it ended), its reclaim as via points,
+        and their names (`segment_name`)."""
+        started = list(self._started[run])
         if not self.finished[run]:
-            times, knots = np.append(times, self.k * self.period), np.vstack([knots, self.q[run]])
-        keep = np.concatenate([[True], np.diff(times) > 0])  # a zero-length segment adds no point
-        return Trajectory(times=times[keep], knots=knots[keep], points=self._fk(knots[keep]))
+            started.append((self.k * self.period, self.q[run].copy(), "end"))
+        times = np.array([t for t, _, _ in started])
+        knots = np.array([q for _, q, _ in started])
+        # A zero-length segment adds no point; a named one wins over an unnamed at the same time.
+        keep = np.append(np.diff(times) > 0, True)
+        names = [started[i][2] or (started[i - 1][2] if i and not keep[i - 1] else "") for i in range(len(started))]
+        return (Trajectory(times=times[keep], knots=knots[keep], points=self._fk(knots[keep])),
+                [name for name, kept in zip(names, keep) if kept])
+
+
+def segment_name(plan: BenchPlan, index: int) -> str:
+    """What a replay calls the start of segment `index`: "bench 2" where a bench's moves begin,
+    "pass 7" where a pass does, "end" after the last; "" for a travel step or a step down."""
+    if index >= len(plan.segments):
+        return "end"
+    segment = plan.segments[index]
+    if isinstance(segment, Pass):
+        return f"pass {segment.number}"
+    return f"bench {segment.bench + 1}" if segment.kind in ("approach", "slew clear") else ""
 
 
 def nominal(plan: BenchPlan, period: float, fk: Callable[[np.ndarray], np.ndarray], every: int = 1,
-            stop_time: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, Trajectory]:
+            stop_time: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, Trajectory, list[str]]:
     """The plan followed open loop (no trim) by one run: times (n,), q and qd (n, 3) every `every`
-    control periods, and its waypoints; what a replay shows before the run is simulated."""
+    control periods, its waypoints and their names; what a replay shows before the run is simulated."""
     reference = BenchReference(plan, 1, period, fk)
     stop = np.ones(1, dtype=bool)
     rows = []
@@ -207,4 +227,4 @@ def nominal(plan: BenchPlan, period: float, fk: Callable[[np.ndarray], np.ndarra
         halt = stop_time is not None and (reference.k + 1) * period >= stop_time - 1e-9
         reference.advance(None, stop if halt else None)
     time = np.array([t for t, _, _ in rows])
-    return time, np.array([q for _, q, _ in rows]), np.array([v for _, _, v in rows]), reference.waypoints(0)
+    return (time, np.array([q for _, q, _ in rows]), np.array([v for _, _, v in rows]), *reference.waypoints(0))

@@ -123,15 +123,15 @@ def _check_listenable(host: str) -> None:
         raise BwrError(f"cannot listen on host {host!r}: {exc.strerror or exc}") from None
 
 
-def via_point_marks(times) -> tuple[float | tuple[float, str], ...]:
-    """Time slider marks at the via points, labelled P1, P2, ... unless a label would print over
-    the one before (the Jump buttons name every via point)."""
+def via_point_marks(times, names) -> tuple[float | tuple[float, str], ...]:
+    """Time slider marks at the via points, labelled with their names (P1, P2, ...) unless a
+    label would print over the one before (the Jump buttons name the landmarks)."""
     marks: list[float | tuple[float, str]] = []
     labelled = -float("inf")
     spacing = MARK_SPACING * float(times[-1] - times[0])
-    for i, t in enumerate(times):
-        if t - labelled >= spacing:
-            marks.append((float(t), f"P{i + 1}"))
+    for t, name in zip(times, names):
+        if name and t - labelled >= spacing:
+            marks.append((float(t), name))
             labelled = t
         else:
             marks.append(float(t))
@@ -173,7 +173,7 @@ class Player:
                 max=self.end,
                 step=step,
                 initial_value=self.start,
-                marks=via_point_marks(plan.via_times),
+                marks=via_point_marks(plan.via_times, plan.names),
             )
             self.speed_slider = gui.add_slider(
                 "Speed [x]",
@@ -183,7 +183,8 @@ class Player:
                 initial_value=INITIAL_SPEED,
                 marks=(1, 10, 50, 100),
             )
-            self.jump = gui.add_button_group("Jump to", [f"P{i + 1}" for i in range(len(plan.via_times))])
+            landmarks = dict(plan.landmarks)
+            self.jump = gui.add_button_group("Jump to", list(landmarks))
         with gui.add_folder("Readout"):
             self.readout = gui.add_markdown("")
         with gui.add_folder("Charts"):
@@ -216,7 +217,7 @@ class Player:
 
         @self.jump.on_click
         def _(event: viser.GuiEvent) -> None:
-            self.seek(float(plan.via_times[int(event.target.value[1:]) - 1]))
+            self.seek(landmarks[event.target.value])
 
     # -- commands: safe from any thread, applied by the player's thread between frames ----------
 

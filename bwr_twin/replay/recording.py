@@ -48,10 +48,24 @@ class Plan:
     via_times: np.ndarray  # (k,) s
     via_points: np.ndarray  # (k, 3) m
     pile: Surface | None = None  # the stockpile at the start, if the scene has one
+    via_names: tuple[str, ...] = ()  # a bench plan's ("bench 1", "pass 3", "" unnamed); () for P1, P2, ...
 
     @property
     def duration(self) -> float:
         return float(self.time[-1] - self.time[0])
+
+    @property
+    def names(self) -> list[str]:
+        """Each via point's name; "" for one the replay marks but does not name."""
+        return list(self.via_names) or [f"P{i + 1}" for i in range(len(self.via_times))]
+
+    @property
+    def landmarks(self) -> list[tuple[str, float]]:
+        """(name, time) of the via points to jump to: every one of a path, each bench of a plan."""
+        names = self.names
+        if not self.via_names:
+            return list(zip(names, self.via_times.tolist()))
+        return [(n, float(t)) for n, t in zip(names, self.via_times) if n.startswith("bench")]
 
     @classmethod
     def from_scene(cls, scene: Scene) -> Plan:
@@ -66,10 +80,11 @@ class Plan:
             from bwr_twin.planning.follower import nominal
 
             control = scene.simulation.control_period
-            time, q_desired, qd_desired, trajectory = nominal(
+            time, q_desired, qd_desired, trajectory, names = nominal(
                 plan_scene(scene), control, machine.fk, every=max(round(period / control), 1),
                 stop_time=scene.reclaim.stop.time)
         else:
+            names = []
             try:
                 trajectory = Trajectory.plan(scene.trajectory, machine)
             except BwrError as exc:
@@ -87,6 +102,7 @@ class Plan:
             via_times=trajectory.times,
             via_points=trajectory.points,
             pile=pile,
+            via_names=tuple(names),
         )
 
 
@@ -217,9 +233,11 @@ class Recording:
             return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
 
         path = scene["trajectory"]
+        names: tuple[str, ...] = ()
         if path is None:  # a bench reclaim: where the run began each segment of its plan
             via_times = np.array(run["waypoint_times"], dtype=float)
             via_points = np.array(run["waypoints"], dtype=float).reshape(-1, 3)
+            names = tuple(run["waypoint_names"])
         else:
             via_times = np.array([v["t"] for v in path["via_points"]], dtype=float)
             via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
@@ -235,6 +253,7 @@ class Recording:
             via_times=via_times,
             via_points=via_points,
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
+            via_names=names,
         )
         return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile)

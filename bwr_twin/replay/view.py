@@ -135,13 +135,14 @@ class SceneView:
         scene.add_line_segments(
             "/path/desired", _segments(path), DESIRED_COLOUR, thickness=LINE_WIDTH, thickness_units="screen"
         )
-        names = [f"P{i + 1}" for i in range(len(plan.via_times))]
-        for name, p in zip(names, plan.via_points):
-            scene.add_icosphere(f"/via/{name}", radius=self.marker_radius, color=VIA_COLOUR, position=p)
-        for first, members in label_groups(plan.via_points, LABEL_MERGE * self.marker_radius).items():
+        names = plan.names
+        for i, p in enumerate(plan.via_points):
+            scene.add_icosphere(f"/via/P{i + 1}", radius=self.marker_radius, color=VIA_COLOUR, position=p)
+        named = [i for i, name in enumerate(names) if name]
+        for first, members in label_groups(plan.via_points[named], LABEL_MERGE * self.marker_radius).items():
             scene.add_label(
-                f"/via/{names[first]}/label",
-                "\n".join(f"{names[k]}  t = {plan.via_times[k]:g} s" for k in members),
+                f"/via/P{named[first] + 1}/label",
+                "\n".join(f"{names[named[k]]}  t = {plan.via_times[named[k]]:g} s" for k in members),
                 position=(0.0, 0.0, 2.0 * self.marker_radius),
                 anchor="bottom-center",
             )

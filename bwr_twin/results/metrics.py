@@ -168,10 +168,28 @@ def summary_table(metrics: dict) -> str:
             f"{reclaim['rate_max_tph']:.0f} t/h; spilled {reclaim['spill_t']:.1f} t"
             + (f"; digging load up to {load / 1e3:.0f} kN" if load > 0 else "")
         )
+        if "target_rate_tph" in reclaim:
+            lines.append(plan_line(reclaim))
         if reclaim["spill_t"] > 0:
             lines.append(f"warning: the wheel dug more than its buckets hold: {reclaim['spill_t']:.1f} t spilled")
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
+
+
+def plan_line(reclaim: dict) -> str:
+    """How a bench plan was carried out: the rate in steady cutting against its target, the
+    landing, the over-cut and the tonnes of each bench."""
+    target, steady = reclaim["target_rate_tph"], reclaim["steady_time_s"]
+    if steady > 0:
+        rate = (f"steady cutting {steady:.0f} s at {reclaim['steady_rate_mean_tph']:.0f} t/h "
+                f"({100 * (reclaim['steady_rate_mean_tph'] / target - 1):+.1f} % of the {target:.0f} t/h target), "
+                f"CV {reclaim['steady_rate_cv']:.3f}, {100 * reclaim['steady_within_10pct']:.0f} % of it within ±10 %")
+    else:
+        rate = f"no steady cutting (target {target:.0f} t/h)"
+    landing = reclaim["landing_error_m"]
+    benches = ", ".join(f"{t:.0f}" for t in reclaim["bench_t"])
+    return (f"{rate}; landing error {landing:.3f} m; over-cut up to {reclaim['overcut_max_m']:.2f} m; "
+            f"bench tonnes {benches} t" if landing is not None else f"{rate}; the wheel never met the pile")
 
 
 def _largest(axis_metrics: dict, j: int, kind: str, per: str) -> str:

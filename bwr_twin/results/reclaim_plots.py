@@ -48,9 +48,15 @@ def _rate_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
     rate, depth, power, force = fig.subplots(4, 1, sharex=True)
     rate.plot(result.time, r.rate, "C0-", lw=0.8, label="reclaim rate")
     rate.axhline(m["wheel_capacity_tph"], color="C3", ls="--", lw=1.0, label="bucket capacity")
+    title = (f"{m['mass_t']:.0f} t reclaimed, {m['spill_t']:.1f} t spilled; "
+             f"mean {m['rate_mean_tph']:.0f} t/h while carrying, CV {m['rate_cv']:.2f}")
+    if "target_rate_tph" in m:  # a bench plan's target, and how steady cutting held it
+        rate.axhline(m["target_rate_tph"], color="k", ls=":", lw=1.0, label="target")
+        if m["steady_time_s"] > 0:
+            title += (f"\nsteady cutting: {m['steady_rate_mean_tph']:.0f} t/h, CV {m['steady_rate_cv']:.3f}, "
+                      f"{100 * m['steady_within_10pct']:.0f} % within ±10 % of the target")
     rate.set_ylabel("rate [t/h]")
-    rate.set_title(f"{m['mass_t']:.0f} t reclaimed, {m['spill_t']:.1f} t spilled; "
-                   f"mean {m['rate_mean_tph']:.0f} t/h while carrying, CV {m['rate_cv']:.2f}")
+    rate.set_title(title)
     rate.legend(loc="upper right")
     depth.plot(result.time, r.cut_depth, "C1-", lw=0.8)
     depth.set_ylabel("cut depth [m]")

@@ -97,7 +97,8 @@ async def serve(scene: Scene, options: Options) -> int:
 
 def _mode_line(clock: Clock) -> str:
     twin = clock.twin
-    path = f"{twin.samples} control periods of {twin.period * 1e3:g} ms ({twin.loop.trajectory.duration:g} s path)"
+    most = " at most" if twin.loop.plan is not None else ""  # a bench plan ends when it is done
+    path = f"{twin.samples} control periods{most} of {twin.period * 1e3:g} ms ({twin.loop.duration:g} s)"
     if clock.mode == LOCKSTEP:
         return f"lockstep: Step(n) advances the twin n control periods; {path}"
     watchdog = (f"watchdog after {clock.watchdog_periods} periods without a DriveSetpoint write"

@@ -20,7 +20,8 @@ class Twin:
 
     Attributes:
         period: the control period, s.
-        samples: the control periods of the path; `k` the next one to be advanced.
+        samples: the control periods of the path (of a bench plan, the most it may take until
+            it ends); `loop.k` the next one to be advanced.
         reading: the latest values of the published variables (see `bwr_twin.serve.address_space`),
             SI units: encoder positions (m, rad) and velocities (m/s, rad/s) at the start of period
             k, the reference at k, the forces the drives applied over period k - 1 (N, N m).
@@ -35,7 +36,6 @@ class Twin:
         """Back to the start of the path: a fresh run of the scene, the same disturbances."""
         self.loop = loop = Lockstep([self.scene], nthread=1)
         self.period = loop.period
-        self.samples = loop.samples
         machine = loop.machine
         margin = END_STOP_MARGIN * np.nan_to_num(machine.joint_range[:, 1] - machine.joint_range[:, 0], posinf=0.0)
         self._low = np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin)  # m, rad
@@ -61,6 +61,10 @@ class Twin:
     @property
     def periods_left(self) -> int:
         return self.samples - self.loop.k
+
+    @property
+    def samples(self) -> int:
+        return self.loop.samples
 
     def advance(self, drive_force: np.ndarray) -> None:
         """Hold the (3,) drive forces (N, N m, N m) over one control period, then read the encoders."""
@@ -90,9 +94,9 @@ class Twin:
             "PeriodsLeft": self.periods_left,
             "EncoderPosition": q_measured[0].copy(),
             "EncoderVelocity": qd_measured[0].copy(),
-            "ReferencePosition": loop.q_desired[k],  # rows of the planned path: never written
-            "ReferenceVelocity": loop.qd_desired[k],
-            "ReferenceAcceleration": loop.qdd_desired[k],
+            # The planned path's rows, or the bench plan's reference of this period: never written.
+            **{name: np.reshape(value, (-1, 3))[0].copy() for name, value in zip(
+                ("ReferencePosition", "ReferenceVelocity", "ReferenceAcceleration"), loop.reference_now())},
             # The limit switches see the true joint, not the encoder.
             "AtLimit": (q_true <= self._low) | (q_true >= self._high),
         })

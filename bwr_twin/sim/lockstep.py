@@ -43,14 +43,17 @@ Progress = Callable[[float, float], None]
 
 def lockstep_key(scene: Scene) -> tuple:
     """What the runs of one lockstep share: the compiled models, the path, the controller and
-    its settings other than numbers (a rule base, say), the timing, the stockpile."""
+    its settings other than numbers (a rule base, say), the timing, the stockpile. A bench
+    reclaim ends when its own rate loop has carried out its plan, so each is a lockstep of its
+    own (the scene itself is its key): no run's end waits for another's."""
+    if scene.reclaim is not None:
+        return ("bench reclaim", scene)
     sim = scene.simulation
     return (
         str(scene.machine.mjcf),
         scene.plant.payload,
         str(scene.controller_mjcf),
         scene.trajectory,
-        scene.reclaim,
         scene.controller.type,
         shared_settings(scene.controller.settings),
         sim.timestep,
@@ -314,12 +317,13 @@ class Lockstep:
                 "control_period": self.period,
                 "timestep": scene.simulation.timestep,
             }
+            waypoints, names = self.reference.waypoints(run)
             if self.plan is not None:  # where the run began each segment of its plan, for a replay
-                waypoints = self.reference.waypoints(run)
                 metrics["run"]["waypoint_times"] = waypoints.times.tolist()
                 metrics["run"]["waypoints"] = waypoints.points.tolist()
+                metrics["run"]["waypoint_names"] = names
             result = self._recorder.run_result(run, scene=scene, machine=self.machine,
-                                               trajectory=self.reference.waypoints(run), time=self.time,
+                                               trajectory=waypoints, time=self.time,
                                                metrics=metrics)
             if self.reclaim is not None:
                 result.reclaim = self.reclaim.run_record(run, self._recorder.rows)

@@ -108,7 +108,7 @@ class Reclaim:
             self.steady_within = np.zeros(runs, dtype=np.int64)
             self.contact = np.full((runs, 3), np.nan)  # world m: the CP when the wheel first cut
             self.contact_time = np.full(runs, np.nan)
-            self.overcut_max = np.zeros(runs)
+            self.overcut_max, self.overcut_time = np.zeros(runs), np.zeros(runs)  # m, s
             self.bench_carried = np.zeros((runs, plan.benches))  # m^3
             self._bench = np.zeros(runs, dtype=np.int64)
 
@@ -188,7 +188,9 @@ class Reclaim:
             self.contact_time[first] = k * self.period
         if phase.steady.any():  # entering or leaving the face, the cut depth is the wheel's side
             over = np.where(phase.steady & cutting, cut.depth - phase.planned_depth, 0.0)
-            np.maximum(self.overcut_max, over, out=self.overcut_max)
+            larger = over > self.overcut_max
+            self.overcut_max[larger] = over[larger]
+            self.overcut_time[larger] = k * self.period
         self._steady_for = np.where(phase.steady, self._steady_for + 1, 0)
         counted = self._steady_for > self._settle
         if counted.any():
@@ -298,6 +300,7 @@ class Reclaim:
             "landing_error_m": landing,
             "first_contact_time_s": None if np.isnan(self.contact_time[run]) else float(self.contact_time[run]),
             "overcut_max_m": float(self.overcut_max[run]),
+            "overcut_max_time_s": float(self.overcut_time[run]),
             "bench_t": [float(v * tonnes) for v in self.bench_carried[run]],
             "bench_planned_t": self.plan.bench_tonnes(),
         }
