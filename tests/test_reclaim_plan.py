@@ -22,7 +22,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import Move, Pass, plan_scene
 from bwr_twin.planning.follower import BenchReference, nominal
 from bwr_twin.replay import Plan, Recording
-from bwr_twin.sim.lockstep import simulate, simulate_lockstep
+from bwr_twin.sim.lockstep import lockstep_key, simulate, simulate_lockstep
 
 # The small scene's [reclaim] and [stockpile.windrow] (degrees where the scene takes degrees).
 RECLAIM = {
@@ -281,7 +281,7 @@ def test_the_nominal_reference_has_a_continuous_velocity(small_plan):
     """No axis changes speed in one control period by more than its acceleration allows: the
     moves and the passes start and end at rest, and each pass brakes onto its end."""
     period = 0.01
-    time, _, qd, waypoints = nominal(small_plan, period, Machine(HEAVY_MJCF).fk)
+    time, _, qd, waypoints, _ = nominal(small_plan, period, Machine(HEAVY_MJCF).fk)
     assert time[-1] == pytest.approx(small_plan.nominal_duration, rel=0.05)
     step = np.abs(np.diff(qd, axis=0)).max(axis=0)
     np.testing.assert_array_less(step, small_plan.acceleration * period * (1 + 1e-6))
@@ -311,17 +311,16 @@ def test_a_time_stop_brakes_the_pass_to_rest_at_that_time(tmp_path):
 
 @pytest.fixture(scope="module")
 def tonnes_runs(tmp_path_factory):
-    """The small scene under the belt-scale loop until 8 t are reclaimed, seeds 1 and 2: each
-    alone and both in one lockstep. The loop trims each run's slew from its own belt, so the
-    two runs stop at different times."""
+    """The small scene under the belt-scale loop until 8 t are reclaimed, seeds 1 and 2. The
+    loop trims each run's slew from its own belt, so the two runs stop at different times."""
     folder = tmp_path_factory.mktemp("tonnes")
     path = scene_file(folder, {"stop": {"tonnes": STOP_TONNES}}, extra=slew_rate_control("belt_scale"))
     scenes = [load_scene(path, {"simulation.seed": seed}) for seed in (1, 2)]
-    return [simulate(s) for s in scenes], simulate_lockstep(scenes)
+    return scenes, [simulate(s) for s in scenes]
 
 
 def test_a_tonnes_stop_ends_the_run_once_the_belt_has_carried_them(tonnes_runs):
-    (result, _), _ = tonnes_runs
+    _, (result, _) = tonnes_runs
     reclaim = result.metrics["reclaim"]
     plan = plan_scene(result.scene)
     assert reclaim["mass_t"] >= STOP_TONNES
@@ -336,18 +335,19 @@ def test_a_tonnes_stop_ends_the_run_once_the_belt_has_carried_them(tonnes_runs):
     assert np.all(result.qd_desired[-1] == 0.0)
 
 
-def test_runs_of_a_lockstep_follow_the_plan_each_as_alone(tonnes_runs):
-    """A run's result does not depend on which runs share its lockstep (bwr_twin.sim.lockstep),
-    even when each follows the plan at its own pace and they end at different times."""
-    alone, together = tonnes_runs
-    assert len(alone[0].time) != len(alone[1].time)  # the seeds' loops stop them at different times
-    for single, shared in zip(alone, together):
-        np.testing.assert_array_equal(shared.time, single.time)
-        np.testing.assert_array_equal(shared.q, single.q)
-        np.testing.assert_array_equal(shared.q_desired, single.q_desired)
-        np.testing.assert_array_equal(shared.reclaim.rate, single.reclaim.rate)
-        assert shared.metrics["reclaim"] == single.metrics["reclaim"]
-        assert shared.metrics["run"]["waypoint_times"] == single.metrics["run"]["waypoint_times"]
+def test_each_bench_reclaim_is_a_lockstep_of_its_own(tonnes_runs):
+    """A run's result does not depend on which runs share its lockstep (bwr_twin.sim.lockstep):
+    bench reclaims end when their own rate loops have carried out the plan, so no two seeds
+    share one, and a batch runs each as it runs alone."""
+    scenes, alone = tonnes_runs
+    durations = [r.metrics["run"]["duration"] for r in alone]
+    assert durations[0] != durations[1]  # the seeds' loops stop them at different times
+    assert lockstep_key(scenes[0]) != lockstep_key(scenes[1])
+    with pytest.raises(ValueError, match="lockstep_key"):
+        simulate_lockstep(scenes)
+    again = simulate_lockstep([load_scene(scenes[0].path, {"simulation.seed": 1})])[0]
+    np.testing.assert_array_equal(again.q, alone[0].q)
+    np.testing.assert_array_equal(again.reclaim.rate, alone[0].reclaim.rate)
 
 
 CONSTANT_TRIM = '''
@@ -385,18 +385,16 @@ def test_an_engineers_rate_control_trims_every_pass(tmp_path, small_run):
      r"my_rate.py: importing it raised RuntimeError: no belt"),
 ], ids=["not a RateControl", "syntax error", "raises on import"])
 def test_a_bad_rate_control_file_is_named(tmp_path, source, message):
-    """An engineer's file that gives no RateControl is refused naming the file, before a run."""
+    """An engineer's file that gives no RateControl is refused naming the file, when the scene is read."""
     (tmp_path / "my_rate.py").write_text(source)
-    scene = small_scene(tmp_path, extra=slew_rate_control("my_rate.py:FourFifths"))
     with pytest.raises(SceneError, match=message):
-        simulate(scene)
+        small_scene(tmp_path, extra=slew_rate_control("my_rate.py:FourFifths"))
 
 
 def test_a_missing_rate_control_file_is_named(tmp_path):
     """The file part of the type is relative to the scene's folder, and named when missing."""
-    scene = small_scene(tmp_path, extra=slew_rate_control("nowhere.py:FourFifths"))
     with pytest.raises(SceneError, match=r"'reclaim.rate_control.type': .*nowhere.py does not exist"):
-        simulate(scene)
+        small_scene(tmp_path, extra=slew_rate_control("nowhere.py:FourFifths"))
 
 
 # -- the shipped scene ------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from bwr_twin.planning.bench import BenchPlan, Move, Pass
 from bwr_twin.planning.trajectory import Trajectory
 
 SLEW = 1
-END_TOLERANCE = 1e-9  # rad short of a pass's end that counts as there (55 nm at 55 m)
+END_TOLERANCE = 1e-9  # rad short of a pass's end that always counts as there (55 nm at 55 m)
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,8 @@ class BenchReference:
                 slew = q[SLEW] + qd[SLEW] * self.period + 0.5 * qdd[SLEW] * self.period**2
                 speed = qd[SLEW] + qdd[SLEW] * self.period
                 q[SLEW], qd[SLEW] = slew, speed
-                if (segment.end - slew) * segment.direction <= END_TOLERANCE or (self.stopping[run] and speed == 0.0):
+                there = (segment.end - slew) * segment.direction <= END_TOLERANCE  # never past it
+                if there or (self.stopping[run] and speed == 0.0):
                     q[SLEW] = segment.end if not self.stopping[run] else slew
                     self._next(run, q.copy())
             if not self.finished[run]:
@@ -172,10 +173,11 @@ class BenchReference:
         else:
             remaining = max((segment.end - q[SLEW]) * direction, 0.0)
             law = self.plan.law.speed(segment, q[SLEW]) * self._trim[run]
-            # The fastest speed at the period's end from which braking at `a` still stops at the
-            # pass's end: v^2 <= 2 a (remaining - (|qd| + v) dt / 2).
+            # The fastest speed v at the period's end from which braking by a dt a period still
+            # stops at the pass's end: this period's (|qd| + v) dt / 2 and then at most
+            # v^2 / 2a + v dt / 2 of braking fit in what remains.
             rest = remaining - 0.5 * abs(qd[SLEW]) * dt
-            brake = 0.5 * (np.sqrt((a * dt) ** 2 + 8.0 * a * max(rest, 0.0)) - a * dt)
+            brake = np.sqrt((a * dt) ** 2 + 2.0 * a * max(rest, 0.0)) - a * dt
             wanted = min(law, self._top, brake)
             # Land on the end: never step past it within this period.
             wanted = min(wanted, 2.0 * remaining / dt - abs(qd[SLEW]))
