@@ -85,6 +85,25 @@ def test_a_travel_cut_across_the_wheel_removes_the_circle_segment_the_geometry_g
     assert dug == pytest.approx(segment * length, rel=1e-4)  # 9e-6 measured
 
 
+def test_a_wheel_that_dips_below_the_yard_floor_digs_no_ground():
+    """The pile stands on the yard floor (Z = 0): a wheel whose lowest point is below it takes
+    the pile down to the floor, and no further."""
+    machine = Machine(HEAVY_MJCF)
+    slew = np.pi / 2
+    luff = np.arcsin((machine.wheel.radius - 1.0 - machine.geometry.pivot_height) / machine.geometry.boom_length)
+    cp = machine.fk(np.array([0.0, slew, luff]))
+    assert cp[2] - machine.wheel.radius == pytest.approx(-1.0)  # the wheel's lowest point 1 m below the floor
+    surface = _prism(3.0, (-5.0, 5.0), (cp[1] - 8.0, cp[1] + 8.0), 0.25)
+    dug = _travel_cut(surface, machine, slew, luff, np.arange(-15.0, 15.0, 0.01))
+    cutter = Cutter(surface, machine.wheel, 1)
+    for d in np.arange(-15.0, 15.0, 0.05):
+        q = np.array([[d, slew, luff]])
+        cutter.cut(machine.fk(q), q[:, 1])
+    assert cutter.heights.min() == 0.0  # down to the floor where the wheel passed ...
+    assert dug == pytest.approx(surface.volume() - surface.volume(cutter.heights[0]), rel=1e-9)
+    assert dug <= surface.volume()  # ... and never below it: only the pile is dug
+
+
 def test_an_oblique_travel_cut_removes_the_swept_envelope():
     machine = Machine(HEAVY_MJCF)
     spacing, height = 0.1, 15.0

@@ -139,7 +139,8 @@ def _plan_figure(path: Path) -> None:
 
 
 def _pile_figure(r: dict, path: Path) -> None:
-    """The pile's end before and after heavy_benches: heights, and a section along the crest."""
+    """The pile's end before and after heavy_benches: heights, and a section along the rail where
+    the benches took the most."""
     x, y = r["x"], r["y"]
     near = (x > -25) & (x < 15)
     fig = Figure(figsize=(11, 8), layout="constrained")
@@ -155,7 +156,7 @@ def _pile_figure(r: dict, path: Path) -> None:
     views[0].set_ylabel("Y [m]")
     top.colorbar(image, ax=views, label="height [m]", shrink=0.8)
     section = bottom.subplots()
-    row = int(np.argmin(np.abs(y - 33.0)))
+    row = int(np.argmax(np.sum(r["z_start"] - r["z_end"], axis=1)))  # where the benches took the most
     section.plot(x[near], r["z_start"][row, near], "k--", lw=1, label="before")
     section.plot(x[near], r["z_end"][row, near], "C0-", lw=1.5, label="after")
     section.set_xlabel("X, along the rail [m]")

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bwr_twin.model.machine import Wheel
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 
 CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again
 SIDE_SLOPE = 6.0  # rise (m) per metre beside the wheel's width of the envelope's flanks (80.5 deg)
@@ -72,6 +72,7 @@ class Cutter:
             np.maximum(span, 0.0, out=span)
             envelope -= np.sqrt(span, out=span)
             envelope += cz
+            np.maximum(envelope, YARD_FLOOR, out=envelope)  # a wheel that dips below the pile cuts no ground
             envelope[outside] = np.inf
             z = self.heights[run].reshape(-1)  # a view: the run's heights, row by row
             old = z[flat]

@@ -16,6 +16,7 @@ import numpy as np
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
 
+YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
 MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
 
 
@@ -121,7 +122,7 @@ def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surfa
         z = interpolate(np.stack([gy, gx], axis=-1))
     else:
         z = griddata(np.column_stack([xs, ys]), zs, (gx, gy), method="linear", fill_value=0.0)
-    return Surface(x, y, np.clip(z, 0.0, None))
+    return Surface(x, y, np.clip(z, YARD_FLOOR, None))
 
 
 def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
