@@ -42,6 +42,8 @@ def as_markdown(instant: Instant, duration: float) -> str:
     ]
     if instant.reclaim_rate is not None:
         lines += ["", f"reclaim rate **{instant.reclaim_rate:,.0f} t/h**"]
+    if instant.stage is not None:
+        lines += ["", f"plan: {instant.stage}"]
     return "\n".join(lines)
 
 
@@ -53,4 +55,6 @@ def as_text(instant: Instant, duration: float) -> str:
     ]
     if instant.reclaim_rate is not None:
         lines.append(f"reclaim rate {instant.reclaim_rate:,.0f} t/h")
+    if instant.stage is not None:
+        lines.append(f"plan: {instant.stage}")
     return "\n".join(lines)

@@ -59,6 +59,25 @@ class Plan:
         """Each via point's name; "" for one the replay marks but does not name."""
         return list(self.via_names) or [f"P{i + 1}" for i in range(len(self.via_times))]
 
+    def stage(self, t: float) -> str | None:
+        """A bench plan's stage at time t, "bench 1, pass 3", from the named via points before it;
+        None on a path."""
+        if not self.via_names:
+            return None
+        bench, step = "", ""
+        for name, start in zip(self.via_names, self.via_times):
+            if start > t:
+                break
+            if name.startswith("bench"):
+                bench, step = name, "moving onto it"
+            elif name.startswith("pass"):
+                step = name
+            elif name == "end":
+                step = "done"
+            elif name == "" and step.startswith("pass"):
+                step = "travel step"
+        return ", ".join(part for part in (bench, step) if part) or None
+
     @property
     def landmarks(self) -> list[tuple[str, float]]:
         """(name, time) of the via points to jump to: every one of a path, each bench of a plan."""
@@ -116,6 +135,7 @@ class Instant:
     cp_desired: np.ndarray  # (3,) m
     cp_actual: np.ndarray
     reclaim_rate: float | None = None  # t/h, with a stockpile
+    stage: str | None = None  # where a bench plan stands: "pass 3"; None on a path
 
     @property
     def q_error(self) -> np.ndarray:
@@ -160,6 +180,7 @@ class Recording:
             cp_desired=blend(self.plan.cp_desired),
             cp_actual=blend(self.cp_actual),
             reclaim_rate=float(self.reclaim_rate[k + round(s)]) if self.reclaim_rate is not None else None,
+            stage=self.plan.stage(t),
         )
 
     @classmethod

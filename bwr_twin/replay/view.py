@@ -138,7 +138,10 @@ class SceneView:
         names = plan.names
         for i, p in enumerate(plan.via_points):
             scene.add_icosphere(f"/via/P{i + 1}", radius=self.marker_radius, color=VIA_COLOUR, position=p)
-        named = [i for i, name in enumerate(names) if name]
+        # A path's via points are all named; a bench plan names its benches in the scene (its passes,
+        # a metre apart, on the slider and in the readout).
+        landmarks = {name for name, _ in plan.landmarks}
+        named = [i for i, name in enumerate(names) if name in landmarks or name == "end"]
         for first, members in label_groups(plan.via_points[named], LABEL_MERGE * self.marker_radius).items():
             scene.add_label(
                 f"/via/P{named[first] + 1}/label",
