@@ -50,7 +50,7 @@ def _compare(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
     from bwr_twin.results.ownership import check_output
     from bwr_twin.shipped import find_scene
-    from bwr_twin.sim.lockstep import simulate_lockstep
+    from bwr_twin.sim.lockstep import simulate_grouped
 
     base = find_scene(args.scene)
     sources = [find_scene(name) for name in args.controllers]
@@ -70,7 +70,7 @@ def _compare(args: argparse.Namespace) -> int:
     with tqdm(total=len(scenes), desc="comparing", unit="run", disable=not sys.stderr.isatty()) as bar:
         for label, group in zip(labels, groups):
             bar.set_postfix_str(label)
-            outcome = simulate_lockstep(group)
+            outcome = simulate_grouped(group)
             failed = [r for r in outcome if isinstance(r, BwrError)]
             if failed:
                 raise BwrError(f"controller {label}: {failed[0]}")

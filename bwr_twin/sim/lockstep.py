@@ -77,6 +77,19 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
     return result
 
 
+def simulate_grouped(scenes: Sequence[Scene], *, nthread: int = 0) -> list[RunResult | SimulationError]:
+    """Run scenes in as few locksteps as their `lockstep_key`s allow (seeds of a path scene
+    together, bench reclaims one by one); results in the scenes' order."""
+    groups: dict[tuple, list[int]] = {}
+    for i, scene in enumerate(scenes):
+        groups.setdefault(lockstep_key(scene), []).append(i)
+    results: list = [None] * len(scenes)
+    for members in groups.values():
+        for i, result in zip(members, simulate_lockstep([scenes[i] for i in members], nthread=nthread)):
+            results[i] = result
+    return results
+
+
 def simulate_lockstep(
     scenes: Sequence[Scene], *, progress: Progress | None = None, nthread: int = 0,
     pile_frame_period: float | None = None,
