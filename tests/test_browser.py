@@ -232,3 +232,54 @@ def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
             assert all(len(t._cut.faces) == 1 for t in tiles)
         finally:
             page.close()
+
+
+JUMP_BUTTONS = """() => {
+    const label = [...document.querySelectorAll('label')].find(l => l.textContent === 'Jump to');
+    let row = label;
+    while (row && !row.querySelector('button')) row = row.parentElement;
+    return row ? [...row.querySelectorAll('button')].map(b => b.textContent) : [];
+}"""
+# viser draws labels on the canvas, not in the DOM: the page's scene tree (its E2E hook) holds them.
+SCENE_LABELS = """() => Object.values(window.__viserSceneTree?.getState() ?? {})
+    .filter(n => n?.message?.type === 'LabelMessage').map(n => n.message.props.text)"""
+
+
+def until(condition, what: str) -> None:
+    """Wait for a condition of the replay server's own state, which the page changes."""
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while not condition():
+        assert time.monotonic() < deadline, f"not within {WAIT_MS / 1000:g} s: {what}"
+        time.sleep(0.1)
+
+
+def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_path):
+    """The small bench scene of test_reclaim_plan, replayed: the bench is a Jump-to button that
+    seeks to its start, and the passes are labelled at the points where the run began them."""
+    from test_reclaim_plan import small_scene
+
+    from bwr_twin.replay.simulation import PILE_FRAME_PERIOD
+    from bwr_twin.results.rundir import write_run
+    from bwr_twin.sim.lockstep import simulate
+
+    result = simulate(small_scene(tmp_path), pile_frame_period=PILE_FRAME_PERIOD)
+    write_run(result, tmp_path / "bench", plots=False)
+    bench = Recording.from_run_dir(tmp_path / "bench")
+
+    with ReplayServer(bench, port=0) as server:
+        page = browser.new_page()
+        try:
+            page.goto(server.url)
+            jump = page.get_by_role("button", name="bench 1")
+            jump.wait_for(timeout=WAIT_MS)
+            assert page.evaluate(JUMP_BUTTONS) == ["bench 1"]  # the benches only, not every pass
+            page.wait_for_function(f"() => ({SCENE_LABELS})().length > 0", timeout=WAIT_MS, polling=100)
+            labels = page.evaluate(SCENE_LABELS)
+            lines = [line for label in labels for line in label.split("\n")]  # close points share a label
+            assert any(line.startswith("pass 1  t = ") for line in lines), labels
+            server.player.seek(50.0)
+            until(lambda: server.player.time == 50.0, "the seek to 50 s")
+            jump.dispatch_event("click")  # click() waits ~25 s for the button to be "stable" here
+            until(lambda: server.player.time == bench.plan.landmarks[0][1], "the jump to bench 1")
+        finally:
+            page.close()

@@ -1,5 +1,5 @@
 """The Gymnasium environment: the checker, seeding, episode ends, force-mode limits, the vector
-environment against single ones, and the example scripts."""
+environment against single ones, the refusal of a bench reclaim, and the example scripts."""
 
 import re
 import subprocess
@@ -139,6 +139,25 @@ def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
             ended = expected[2] or expected[3]
             ends += ended
     assert ends >= 3
+
+
+@pytest.mark.parametrize("make", [
+    lambda scene: gymnasium.make(ENV_ID, scene=scene),
+    lambda scene: gymnasium.make_vec(ENV_ID, num_envs=2, scene=scene),
+], ids=["make", "make_vec"])
+def test_a_bench_reclaim_scene_is_refused_naming_path_and_reclaim(tmp_path, make):
+    """The environment follows a [path] sampled in advance; a [reclaim]'s reference is decided as
+    the run goes. The small bench scene extends heavy_dig_pile, which has a [path]: its [reclaim]
+    must still be seen, and refused in one message naming both, whichever way the env is made."""
+    from test_reclaim_plan import scene_file
+
+    scene = scene_file(tmp_path)
+    with pytest.raises(SceneError) as refused:
+        make(str(scene))
+    message = str(refused.value)
+    assert message.startswith(f"{scene}: bwr_twin/Reclaim-v0 follows a scene's [path]; "
+                              "this scene plans a [reclaim]")
+    assert message.endswith("give a scene with a [path]")
 
 
 @pytest.mark.parametrize("script", ["gym_pd.py", "gym_random.py"])

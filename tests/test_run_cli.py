@@ -1,5 +1,6 @@
 """`python -m bwr_twin.run`: results that follow the output contract, identical for the same
-seed, and bad input that exits non-zero with one line and leaves nothing behind."""
+seed, a bench reclaim's plan and waypoints, and bad input that exits non-zero with one line and
+leaves nothing behind."""
 
 import json
 import subprocess
@@ -92,6 +93,50 @@ def test_a_negative_seed_exits_2_naming_the_key(tmp_path):
 def test_missing_scene_file_exits_2(tmp_path):
     proc = run_cli(tmp_path / "nope.toml", "--out", tmp_path / "out")
     assert proc.returncode == 2 and "nope.toml: scene file not found" in proc.stderr
+
+
+def test_a_bench_reclaim_prints_its_plan_line_and_writes_its_waypoints(tmp_path):
+    """The small bench scene of test_reclaim_plan run from the command line: the plan line says
+    how the plan was carried out, metrics.json keeps where each segment began, and a replay of
+    the run directory names them and jumps to the bench."""
+    from test_reclaim_plan import RECLAIM, scene_file
+
+    from bwr_twin.replay import Recording
+
+    out = tmp_path / "bench"
+    proc = run_cli(scene_file(tmp_path), "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    (plan_line,) = [line for line in proc.stdout.splitlines() if "landing error" in line]
+    assert plan_line.startswith(("steady cutting ", "no steady cutting ")), plan_line
+    metrics = json.loads((out / "metrics.json").read_text())
+    reclaim, run = metrics["reclaim"], metrics["run"]
+    assert reclaim["target_rate_tph"] == RECLAIM["target_rate"]
+    assert f"; landing error {reclaim['landing_error_m']:.3f} m;" in plan_line
+    (bench,) = reclaim["bench_t"]  # stop: one bench
+    assert bench > 0
+    names = run["waypoint_names"]
+    assert len(run["waypoint_times"]) == len(run["waypoints"]) == len(names)
+    assert names[0] == "bench 1" and names[-1] == "end" and {"pass 1", "pass 2", "pass 3"} <= set(names)
+    assert (out / "reclaim.png").stat().st_size > 10_000
+
+    recording = Recording.from_run_dir(out)
+    assert recording.plan.via_names == tuple(names)
+    np.testing.assert_array_equal(recording.plan.via_times, run["waypoint_times"])
+    assert [name for name, _ in recording.plan.landmarks] == ["bench 1"]
+
+
+def test_a_refused_bench_plan_exits_with_one_line_and_writes_nothing(tmp_path):
+    """A bench higher than 0.6 x the wheel's diameter is refused as it is planned, before the
+    simulation, naming the key."""
+    from test_reclaim_plan import scene_file
+
+    proc = run_cli(scene_file(tmp_path, {"bench_height": 6.5}), "--out", tmp_path / "out")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("error: ") and "small.toml" in lines[0], lines[0]
+    assert "'bench_height' 6.5 m is more than 0.6 x the wheel's 10 m diameter" in lines[0], lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["small.toml"]
 
 
 @pytest.mark.parametrize("command", ["run", "batch", "compare", "tune", "replay", "fis", "gym_help"])

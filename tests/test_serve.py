@@ -465,3 +465,60 @@ def test_the_reclaim_rate_is_published_as_the_wheel_digs():
         rates.append(twin.reading["ReclaimRate"])
     assert max(rates) > 1000.0  # t/h while cutting
     assert rates[0] == 0.0 and rates[-1] == 0.0  # beside the pile at the start, lifted clear at the end
+
+
+BENCH_PERIODS = 200  # 2 s into the small bench scene's approach (11.3 s): travel and slew under way
+BENCH_CHUNK = 100  # periods of one Step(n) after them
+
+
+def test_a_bench_reclaim_is_served_with_the_plans_reference(tmp_path):
+    """A [reclaim] scene has no path sampled in advance: the server publishes the plan's
+    reference of the current period. Over the wire it is the approach's cubic at the period's
+    time, stepped one period or many at a time, and PeriodsLeft counts down the periods."""
+    from test_reclaim_plan import scene_file
+
+    from bwr_twin.planning.bench import plan_scene
+
+    path = scene_file(tmp_path)
+    scene = load_scene(path)
+    plan = plan_scene(scene)
+    approach, period = plan.segments[0], scene.simulation.control_period
+    assert approach.kind == "approach" and approach.duration > (BENCH_PERIODS + BENCH_CHUNK) * period
+
+    async def session(url):
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            pid = Pid(scene.controller.settings, await plc.value("ControlPeriod"))
+            left = [await plc.value("PeriodsLeft")]
+            positions, references = [], []
+            for _ in range(BENCH_PERIODS):
+                q, qd, q_ref, qd_ref = await plc.read("EncoderPosition", "EncoderVelocity",
+                                                      "ReferencePosition", "ReferenceVelocity")
+                await plc.set_drives(pid(q, qd, q_ref, qd_ref))
+                await plc.step(1)
+                positions.append(q)
+                references.append(q_ref)
+            left.append(await plc.value("PeriodsLeft"))
+            sim_time = await plc.step(BENCH_CHUNK)  # under the last forces written
+            left.append(await plc.value("PeriodsLeft"))
+            references.append((await plc.read("ReferencePosition"))[0])
+            return np.array(positions), np.array(references), left, sim_time
+
+    server = Launched(path, "--no-plots")
+    try:
+        positions, references, left, sim_time = run(session(server.ready()))
+    finally:
+        status = server.stop()
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+
+    times = np.append(np.arange(BENCH_PERIODS), BENCH_PERIODS + BENCH_CHUNK) * period
+    np.testing.assert_allclose(references, [approach.sample(t)[0] for t in times], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(references[0], plan.start)
+    moved = np.abs(references[BENCH_PERIODS - 1] - plan.start)
+    assert moved[0] > 0.15 and moved[1] > np.radians(0.1), moved  # m, rad: the approach is under way
+    assert sim_time == pytest.approx((BENCH_PERIODS + BENCH_CHUNK) * period)
+    assert left[0] >= round(plan.nominal_duration / period)  # the whole plan ahead
+    assert left[1:] == [left[0] - BENCH_PERIODS, left[0] - BENCH_PERIODS - BENCH_CHUNK]
+    # The PID over the wire carried travel and slew along with the reference.
+    followed = (positions[-1] - positions[0])[:2] / (references[BENCH_PERIODS - 1] - references[0])[:2]
+    assert ((followed > 0.5) & (followed < 1.5)).all(), followed
