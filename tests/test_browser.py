@@ -255,7 +255,8 @@ def until(condition, what: str) -> None:
 
 def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_path):
     """The small bench scene of test_reclaim_plan, replayed: the bench is a Jump-to button that
-    seeks to its start, and the passes are labelled at the points where the run began them."""
+    seeks to its start and a label where the run began it; the passes, a metre apart, are named
+    on the time slider and in the readout's plan line, not by labels on top of each other."""
     from test_reclaim_plan import small_scene
 
     from bwr_twin.replay.simulation import PILE_FRAME_PERIOD
@@ -276,7 +277,9 @@ def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_pat
             page.wait_for_function(f"() => ({SCENE_LABELS})().length > 0", timeout=WAIT_MS, polling=100)
             labels = page.evaluate(SCENE_LABELS)
             lines = [line for label in labels for line in label.split("\n")]  # close points share a label
-            assert any(line.startswith("pass 1  t = ") for line in lines), labels
+            assert any(line.startswith("bench 1  t = 0 s") for line in lines), labels
+            assert not any(line.startswith("pass") for line in lines), labels
+            page.get_by_text("plan: bench 1").first.wait_for(timeout=WAIT_MS)  # the readout
             server.player.seek(50.0)
             until(lambda: server.player.time == 50.0, "the seek to 50 s")
             jump.dispatch_event("click")  # click() waits ~25 s for the button to be "stable" here
