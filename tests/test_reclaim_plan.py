@@ -19,8 +19,9 @@ from conftest import HEAVY_MJCF, SCENES
 from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
-from bwr_twin.planning.bench import Move, Pass, plan_scene
+from bwr_twin.planning.bench import plan_scene
 from bwr_twin.planning.follower import BenchReference, nominal
+from bwr_twin.planning.plan import Move, Pass
 from bwr_twin.replay import Plan, Recording
 from bwr_twin.sim.lockstep import lockstep_key, simulate, simulate_grouped, simulate_lockstep
 

@@ -11,17 +11,17 @@ Nothing is assumed of the pile's shape: the planner digs a copy of it with the t
 (bwr_twin.stockpile.cutting) as it plans, so it finds the face and the edges of every pass on the
 pile as the passes before it leave it, and predicts what each pass reclaims.
 
-The plan is a list of segments: `Move`s (smooth joint-space cubics, at rest at both ends, within
-the rated speeds and the scene's accelerations) and `Pass`es (a slew at the bench's travel and
-luff whose speed is decided while the run goes: the speed law, trimmed by the rate control;
-bwr_twin.planning.follower). A plan that cannot be carried out is refused with a SceneError
-before anything is simulated.
+The plan (bwr_twin.planning.plan) is a list of segments: `Move`s (smooth joint-space cubics, at
+rest at both ends, within the rated speeds and the scene's accelerations) and `Pass`es (a slew
+at the bench's travel and luff whose speed is decided while the run goes: the speed law, trimmed
+by the rate control; bwr_twin.planning.follower). A plan that cannot be carried out is refused
+with a SceneError before anything is simulated.
 """
 
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
@@ -30,11 +30,10 @@ import numpy as np
 from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
 from bwr_twin.errors import EnvelopeError, SceneError
 from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.planning.plan import KG_PER_T, SECONDS_PER_HOUR, BenchPlan, Move, Pass, SpeedLaw, end_of
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.surface import Surface, build_surface
 
-SECONDS_PER_HOUR = 3600.0
-KG_PER_T = 1000.0
 MAX_BENCH_SHARE = 0.6  # of the wheel's diameter: the highest bench a wheel takes (docs/reclaiming.md)
 PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell
 DIG_STEP = 0.05  # m the wheel moves between cuts when the planner digs its copy of the pile
@@ -44,97 +43,6 @@ CLEARANCE = 0.5  # m the wheel turns clear of the pile's edge beyond its speed r
 FULL_FACE = 0.9  # a pass cuts steadily where its face's section is at least this share of the full one
 SMOOTHING = 1.0  # m of the wheel's travel over which the predicted section is averaged
 MIN_MOVE = 1.0  # s: the shortest move
-
-
-@dataclass(frozen=True)
-class Move:
-    """A smooth joint-space move, at rest at both ends: one cubic per axis."""
-
-    start: np.ndarray  # (3,) m, rad, rad
-    end: np.ndarray
-    duration: float  # s, a whole number of control periods
-    bench: int  # 0-based
-    kind: str  # "approach", "travel step", "slew clear", "step down"
-
-    def sample(self, tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity and acceleration (3,) at `tau` s into the move."""
-        s = min(max(tau / self.duration, 0.0), 1.0)
-        delta = self.end - self.start
-        return (self.start + delta * (3 * s**2 - 2 * s**3), delta * (6 * s - 6 * s**2) / self.duration,
-                delta * (6 - 12 * s) / self.duration**2)
-
-
-@dataclass(frozen=True)
-class Pass:
-    """A slew across the face at one travel and luff; its speed is decided as the run goes."""
-
-    travel: float  # m
-    luff: float  # rad
-    start: float  # rad, slew
-    end: float  # rad
-    bench: int  # 0-based
-    number: int  # 1-based within the plan
-    cut: tuple[float, float]  # rad: where the predicted cut begins and ends, in the pass's direction
-    steady: tuple[float, float] | None  # rad: where the face stands at its full section, or None
-    face_height: float  # m, the bench's
-    cut_depth: float  # m, the travel advance that made this cut
-    radius: float  # m from the slew axis to the face's centre of area
-    volume: float  # m^3 the planner predicts it cuts
-
-    @property
-    def direction(self) -> float:
-        return 1.0 if self.end >= self.start else -1.0
-
-    def within(self, slew: float, interval: tuple[float, float] | None) -> bool:
-        """Whether `slew` lies in `interval` (given in the pass's direction)."""
-        if interval is None:
-            return False
-        low, high = sorted(interval)
-        return low <= slew <= high
-
-
-@dataclass(frozen=True)
-class SpeedLaw:
-    """The open-loop slew speed for the target rate: rate = face height x cut x lateral speed,
-    the cut across the face being cut_depth x |cos(slew)|."""
-
-    volume_rate: float  # m^3/s, the target
-    law: str  # "cosine" or "constant"
-    cap: float  # rad: the cosine law holds its speed beyond it
-    rated: float  # rad/s, the slew drive's rated speed
-
-    def speed(self, p: Pass, slew: float) -> float:
-        """rad/s at `slew` in pass p, before any trim."""
-        angle = slew if self.law == "cosine" else 0.5 * (p.cut[0] + p.cut[1])
-        cosine = max(abs(np.cos(angle)), np.cos(self.cap))
-        return self.volume_rate / (p.face_height * p.cut_depth * cosine * p.radius)
-
-
-@dataclass(frozen=True)
-class BenchPlan:
-    """The segments of a bench reclaim and what the planner predicts of them."""
-
-    segments: tuple[Move | Pass, ...]
-    start: np.ndarray  # (3,) where the machine stands at t = 0
-    law: SpeedLaw
-    acceleration: np.ndarray  # (3,) m/s^2, rad/s^2, rad/s^2
-    rated_speed: np.ndarray  # (3,) m/s, rad/s, rad/s
-    first_contact: np.ndarray | None  # (3,) world m: where the wheel first touches the pile
-    bench_volumes: tuple[float, ...]  # m^3 predicted per bench
-    density: float  # kg/m^3
-    nominal_duration: float  # s, open loop
-    longest_duration: float  # s: the slowest any rate control may make it (trims at their low limit)
-
-    @property
-    def passes(self) -> list[Pass]:
-        return [s for s in self.segments if isinstance(s, Pass)]
-
-    @property
-    def benches(self) -> int:
-        return len(self.bench_volumes)
-
-    def bench_tonnes(self) -> list[float]:
-        return [v * self.density / KG_PER_T for v in self.bench_volumes]
 
 
 def plan_scene(scene: Scene) -> BenchPlan:
@@ -261,7 +169,7 @@ class _Planner:
             segments += bench_segments
             volumes.append(volume)
             nominal += sum(self._nominal_time(x) for x in bench_segments)
-            q = _end_of(bench_segments[-1])
+            q = end_of(bench_segments[-1])
             bench += 1
         low_trim = s.rate_control.trim_limits[0]
         ramp = self._fastest(self.start[2]) / self.acceleration[1]  # s to reach or leave the fastest slew
@@ -501,12 +409,6 @@ class _Planner:
         speeds = np.minimum([self.law.speed(segment, a) for a in angles], self.law.rated)
         ramp = speeds.max() / self.acceleration[1]  # s: speeding up and braking take about one ramp more
         return float(np.trapezoid(1.0 / speeds, angles) * segment.direction) + ramp
-
-
-def _end_of(segment: Move | Pass) -> np.ndarray:
-    if isinstance(segment, Move):
-        return segment.end
-    return np.array([segment.travel, segment.end, segment.luff])
 
 
 def _longest_run(mask: np.ndarray) -> tuple[int, int] | None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.planning.bench import BenchPlan, Move, Pass
+from bwr_twin.planning.plan import BenchPlan, Move, Pass
 from bwr_twin.planning.trajectory import Trajectory
 
 SLEW = 1

@@ -1,5 +1,6 @@
 """The desired joint trajectory: inverse kinematics at the via points, then one cubic per
-segment with zero velocity at every via point (paper Sec. 4)."""
+segment with zero velocity at every via point (paper Sec. 4); the same cubic moves a bench
+plan's joints (bwr_twin.planning.plan)."""
 
 from __future__ import annotations
 
@@ -76,10 +77,13 @@ class Trajectory:
         t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
         seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
         t0, t1 = self.times[seg], self.times[seg + 1]
-        span = (t1 - t0)[..., None]
-        s = ((t - t0) / (t1 - t0))[..., None]
-        delta = self.knots[seg + 1] - self.knots[seg]
-        q = self.knots[seg] + delta * (3 * s**2 - 2 * s**3)
-        qd = delta * (6 * s - 6 * s**2) / span
-        qdd = delta * (6 - 12 * s) / span**2
-        return q, qd, qdd
+        return rest_to_rest(self.knots[seg], self.knots[seg + 1], (t1 - t0)[..., None], ((t - t0) / (t1 - t0))[..., None])
+
+
+def rest_to_rest(start: np.ndarray, end: np.ndarray, span, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cubic from `start` at rest to `end` at rest over `span` s, at the fraction `s` of it:
+    position, velocity and acceleration. Its top speed is 1.5 x delta / span, its top
+    acceleration 6 x delta / span^2, at both ends."""
+    delta = end - start
+    return (start + delta * (3 * s**2 - 2 * s**3), delta * (6 * s - 6 * s**2) / span,
+            delta * (6 - 12 * s) / span**2)

@@ -26,8 +26,8 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
-from bwr_twin.planning.bench import BenchPlan
 from bwr_twin.planning.follower import Phase
+from bwr_twin.planning.plan import BenchPlan
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.placement import check_placement
