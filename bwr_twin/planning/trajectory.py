@@ -77,7 +77,8 @@ class Trajectory:
         t = np.clip(np.asarray(t, dtype=float), self.times[0], self.times[-1])
         seg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
         t0, t1 = self.times[seg], self.times[seg + 1]
-        return rest_to_rest(self.knots[seg], self.knots[seg + 1], (t1 - t0)[..., None], ((t - t0) / (t1 - t0))[..., None])
+        span = (t1 - t0)[..., None]
+        return rest_to_rest(self.knots[seg], self.knots[seg + 1], span, (t - t0)[..., None] / span)
 
 
 def rest_to_rest(start: np.ndarray, end: np.ndarray, span, s) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

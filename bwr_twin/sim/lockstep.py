@@ -68,8 +68,8 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
     """Run one scene headless. Raises BwrError subclasses on bad input or divergence.
 
     `progress(done, total)`, if given, hears how many of the path's seconds are simulated, about
-    once a simulated second (for a bench reclaim, of the most it may take). `pile_frame_period` (s), if given, keeps the pile as it is dug that
-    often, for a replay.
+    once a simulated second (for a bench reclaim, of the most it may take). `pile_frame_period`
+    (s), if given, keeps the pile as it is dug that often, for a replay.
     """
     (result,) = simulate_lockstep([scene], progress=progress, nthread=nthread, pile_frame_period=pile_frame_period)
     if isinstance(result, BwrError):
