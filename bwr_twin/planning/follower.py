@@ -109,8 +109,8 @@ class BenchReference:
             if p is None:
                 continue
             slew = self.q[run, SLEW]
-            phase.cutting[run] = p.within(slew, p.cut)
-            phase.steady[run] = p.within(slew, p.steady)
+            phase.cutting[run] = p.cuts_at(slew)
+            phase.steady[run] = p.steady_at(slew)
             phase.planned_depth[run] = p.cut_depth * abs(np.cos(slew))
         return phase
 

@@ -49,12 +49,13 @@ class Pass:
     def direction(self) -> float:
         return 1.0 if self.end >= self.start else -1.0
 
-    def within(self, slew: float, interval: tuple[float, float] | None) -> bool:
-        """Whether `slew` lies in `interval` (given in the pass's direction)."""
-        if interval is None:
-            return False
-        low, high = sorted(interval)
-        return low <= slew <= high
+    def cuts_at(self, slew: float) -> bool:
+        """Whether the planner predicts that the wheel cuts at `slew` (rad)."""
+        return _between(slew, self.cut)
+
+    def steady_at(self, slew: float) -> bool:
+        """Whether `slew` (rad) lies where the pass cuts a full face."""
+        return self.steady is not None and _between(slew, self.steady)
 
 
 @dataclass(frozen=True)
@@ -106,3 +107,9 @@ def end_of(segment: Move | Pass) -> np.ndarray:
     if isinstance(segment, Move):
         return segment.end
     return np.array([segment.travel, segment.end, segment.luff])
+
+
+def _between(value: float, interval: tuple[float, float]) -> bool:
+    """Whether value lies in the interval, whichever way round it is given."""
+    low, high = sorted(interval)
+    return low <= value <= high
