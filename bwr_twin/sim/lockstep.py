@@ -26,7 +26,7 @@ from bwr_twin.control.registry import controller_class
 from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_scene
-from bwr_twin.planning.follower import BenchReference, PathReference
+from bwr_twin.planning.follower import BenchReference, PathReference, Phase
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.results.metrics import OnlineMetrics
 from bwr_twin.results.record import Recorder, RunResult
@@ -262,7 +262,7 @@ class Lockstep:
             self._finish(k - 1, self._q, self._qd, self.plant.qvel)
             self.plant.check_health()
 
-    def _follow_plan(self, k: int, phase) -> None:
+    def _follow_plan(self, k: int, phase: Phase) -> None:
         """On along the bench plan to period k: the rate control's trims from what it measured in
         the period just ended, the stop condition, and the end of the lockstep once every run rests."""
         reclaim, stop = self.reclaim, self.scenes[0].reclaim.stop
