@@ -20,9 +20,7 @@ import numpy as np
 
 from bwr_twin.config.scene import RateControlSection, Scene
 from bwr_twin.errors import SceneError
-
-SECONDS_PER_HOUR = 3600.0
-KG_PER_T = 1000.0
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 
 @dataclass(frozen=True)

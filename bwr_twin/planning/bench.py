@@ -30,9 +30,10 @@ import numpy as np
 from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
 from bwr_twin.errors import EnvelopeError, SceneError
 from bwr_twin.model.machine import AXES, Machine, describe
-from bwr_twin.planning.plan import KG_PER_T, SECONDS_PER_HOUR, BenchPlan, Move, Pass, SpeedLaw, end_of
+from bwr_twin.planning.plan import BenchPlan, Move, Pass, SpeedLaw, end_of
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.surface import Surface, build_surface
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 MAX_BENCH_SHARE = 0.6  # of the wheel's diameter: the highest bench a wheel takes (docs/reclaiming.md)
 PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell

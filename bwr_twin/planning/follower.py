@@ -69,6 +69,7 @@ class BenchReference:
     Attributes:
         q, qd, qdd: (runs, 3) the reference of the current period (m, rad; /s; /s^2).
         segment: (runs,) index into plan.segments; len(segments) once a run is finished.
+        bench: (runs,) 0-based bench of each run's segment (its last once finished).
         finished: (runs,) bool: the run has completed its plan (or stopped) and rests.
     """
 
@@ -82,6 +83,7 @@ class BenchReference:
         self.qd = np.zeros((runs, 3))
         self.qdd = np.zeros((runs, 3))
         self.segment = np.zeros(runs, dtype=np.int64)
+        self.bench = np.full(runs, plan.segments[0].bench, dtype=np.int64)
         self.elapsed = np.zeros(runs)  # s into the current move
         self.stopping = np.zeros(runs, dtype=bool)
         self.finished = np.zeros(runs, dtype=bool)
@@ -94,15 +96,9 @@ class BenchReference:
         for run in range(runs):
             self._plan_period(run)
 
-    @property
-    def bench(self) -> np.ndarray:
-        """(runs,) 0-based bench of each run's current segment (its last once finished)."""
-        last = len(self.plan.segments) - 1
-        return np.array([self.plan.segments[min(s, last)].bench for s in self.segment])
-
     def phase(self) -> Phase:
         """Where every run stands in its plan this period."""
-        phase = Phase(self.bench, np.zeros(self.runs, dtype=bool), np.zeros(self.runs, dtype=bool),
+        phase = Phase(self.bench.copy(), np.zeros(self.runs, dtype=bool), np.zeros(self.runs, dtype=bool),
                       np.full(self.runs, np.nan))
         for run in range(self.runs):
             p = self.current_pass(run)
@@ -158,6 +154,8 @@ class BenchReference:
         if self.segment[run] >= len(self.plan.segments) or self.stopping[run]:
             self.finished[run] = True
             self.segment[run] = len(self.plan.segments)
+        else:
+            self.bench[run] = self.plan.segments[self.segment[run]].bench
         self._started[run].append((self.k * self.period, at.copy(), segment_name(self.plan, self.segment[run])))
 
     def _plan_period(self, run: int) -> None:

@@ -8,9 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bwr_twin.planning.trajectory import rest_to_rest
-
-SECONDS_PER_HOUR = 3600.0
-KG_PER_T = 1000.0
+from bwr_twin.units import KG_PER_T
 
 
 @dataclass(frozen=True)

@@ -32,10 +32,9 @@ from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.surface import Surface
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
-SECONDS_PER_HOUR = 3600.0
 DUG_RATE_FLOOR = 1e-6  # m^3/s: below it the lagged dug rate is no load at all (under 1 N of force)
-KG_PER_T = 1000.0
 RATE_BAND = 0.1  # of the target: the band the steady rate is counted within
 
 
