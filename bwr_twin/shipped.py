@@ -1,8 +1,11 @@
 """The files the package ships: machine models, scenes, sweeps and rule bases.
 
 They are found through the installed package, so a command works from any folder and from a
-non-editable install. A scene or sweep on the command line is a file path, or the name of a
-shipped one: `paper_individual_gains`, `sweeps/paper_monte_carlo`.
+non-editable install. In the checkout they are the top-level folders mjcf/ and scenes/, which
+pyproject.toml ships as the packages `bwr_twin.mjcf` and `bwr_twin.scenes`: in a wheel they sit
+inside bwr_twin/, and an editable install maps them to the checkout's folders. A scene or sweep
+on the command line is a file path, or the name of a shipped one: `paper_individual_gains`,
+`sweeps/paper_monte_carlo`.
 """
 
 from __future__ import annotations
@@ -13,8 +16,8 @@ from pathlib import Path
 from bwr_twin.errors import SceneError
 
 PACKAGE = Path(str(files("bwr_twin")))
-MJCF = PACKAGE / "mjcf"
-SCENES = PACKAGE / "scenes"
+MJCF = Path(str(files("bwr_twin.mjcf")))
+SCENES = Path(str(files("bwr_twin.scenes")))
 RULE_BASES = SCENES / "rulebases"
 DEFAULT_SCENE = SCENES / "paper_individual_gains.toml"
 
