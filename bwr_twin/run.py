@@ -3,7 +3,7 @@
     python -m bwr_twin.run paper_individual_gains --out out/individual
     python -m bwr_twin.run SCENE --out DIR [--model MJCF] [--seed N] [--overwrite] [--no-plots] [--force]
 
-SCENE is a scene file, or the name of a shipped one (bwr_twin/scenes/).
+SCENE is a scene file, or the name of a shipped one (scenes/).
 
 Writes DIR/metrics.json, DIR/timeseries.csv, DIR/scene.json and the paper's figures as PNG,
 then prints the maximum errors with their times. DIR appears only when complete. Bad input

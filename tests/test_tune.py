@@ -158,7 +158,7 @@ def test_the_shipped_tuning_files_load(tmp_path):
     from bwr_twin.config.tuning import load_tuning
 
     for name in ("paper_gains", "heavy_wind"):
-        tuning = load_tuning(ROOT / "bwr_twin" / "scenes" / "tuning" / f"{name}.toml")
+        tuning = load_tuning(ROOT / "scenes" / "tuning" / f"{name}.toml")
         assert len(tuning.parameters) == 5 and not set(tuning.training_seeds) & set(tuning.held_out_seeds)
 
 

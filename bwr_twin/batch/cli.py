@@ -5,7 +5,7 @@ resumably.
     python -m bwr_twin.batch SWEEP --out DIR [--workers N | --scheduler tcp://HOST:PORT]
                              [--chunk RUNS] [--plots] [--retry-failed] [--force]
 
-SWEEP is a sweep file, or the name of a shipped one (bwr_twin/scenes/sweeps/).
+SWEEP is a sweep file, or the name of a shipped one (scenes/sweeps/).
 
 Runs that share a machine, path, rule base and timing advance together in locksteps of up to
 `--chunk` runs (default: the runs spread evenly over the workers, at most 128 a lockstep, which

@@ -1,7 +1,7 @@
 """Evaluate, convert and plot MATLAB Fuzzy Logic Toolbox .fis files (type-1 Mamdani).
 
     python -m bwr_twin.fis evaluate tests/assets/tipper.fis 2 1
-    python -m bwr_twin.fis convert bwr_twin/scenes/rulebases/paper_table2.toml paper.fis
+    python -m bwr_twin.fis convert scenes/rulebases/paper_table2.toml paper.fis
     python -m bwr_twin.fis convert paper.fis back.toml
     python -m bwr_twin.fis surface tests/assets/tipper.fis --out tipper.png
 

@@ -3,7 +3,7 @@
     python -m bwr_twin.tune tuning/paper_gains --out out/tune
     python -m bwr_twin.tune TUNE.toml --out DIR [--workers N | --scheduler tcp://HOST:PORT]
 
-TUNE is a tuning file (bwr_twin.config.tuning), or the name of a shipped one (bwr_twin/scenes/).
+TUNE is a tuning file (bwr_twin.config.tuning), or the name of a shipped one (scenes/).
 The start point (the base scene) is evaluated first: it sets each metric's normaliser. Then
 every generation's candidates run on the same training seeds as lockstep batches. After each
 generation DIR/tuner_state.pkl and DIR/history.csv are saved; the same command continues a
