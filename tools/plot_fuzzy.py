@@ -20,8 +20,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from bwr_twin.control.fuzzy import FuzzySurface, build_control_system
-from bwr_twin.control.rulebase import PAPER_RULES, RuleBase
+from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.errors import BwrError
+from bwr_twin.shipped import RULE_BASES
 
 TITLE_INPUTS = {"e": "position error e (scaled)", "ec": "velocity error ec (scaled)", "u": "output u"}
 
@@ -103,7 +104,7 @@ def _inference(rb: RuleBase) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rules", type=Path, default=PAPER_RULES,
+    parser.add_argument("--rules", type=Path, default=RULE_BASES / "paper_table2.toml",
                         help="rule base TOML (default: the paper's)")
     parser.add_argument("--out", type=Path, default=Path("out/fuzzy"),
                         help="output folder (default: out/fuzzy)")

@@ -18,7 +18,7 @@ import numpy as np
 
 from bwr_twin.control.fuzzy import FuzzySurface
 from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
-from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.fis.convert import load_rule_base
 
 Vec3 = tuple[float, float, float]
 
@@ -55,7 +55,7 @@ class FuzzyModelController(Controller):
                  surface: FuzzySurface | None = None):
         super().__init__(context, settings)
         self.belief = context.belief
-        self._surface = surface or FuzzySurface.load(RuleBase.from_file(settings[0].rule_base))
+        self._surface = surface or FuzzySurface.load(load_rule_base(settings[0].rule_base))
         self._scale_e = self.per_run("input_scale_e")
         self._scale_ec = self.per_run("input_scale_ec")
         self._output_gain = self.per_run("output_gain")

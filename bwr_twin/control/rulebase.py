@@ -2,6 +2,7 @@
 
 The file under scenes/rulebases/ names the sets, the rule table and the universes, each number
 with its source; `RuleBase.digest()` keys the cached control surface of bwr_twin.control.fuzzy.
+A MATLAB .fis file becomes a RuleBase in bwr_twin.fis.convert, which builds on this module.
 """
 
 from __future__ import annotations
@@ -16,16 +17,14 @@ from typing import Any
 
 import numpy as np
 
-from bwr_twin.config.scene import is_number
 from bwr_twin.errors import SceneError
-from bwr_twin.shipped import RULE_BASES
+from bwr_twin.values import is_number
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-PAPER_RULES = RULE_BASES / "paper_table2.toml"
 _DIGEST_SCHEMA = "bwr_twin.control.fuzzy.RuleBase/1"
 
 _KEYS: dict[str, set[str] | None] = {
@@ -72,11 +71,6 @@ class RuleBase:
     path: Path | None = field(default=None, compare=False)
 
     @classmethod
-    def paper(cls) -> RuleBase:
-        """The paper's rule base (Sec. 3, Table 2)."""
-        return cls.from_toml(PAPER_RULES)
-
-    @classmethod
     def from_toml(cls, path: str | Path) -> RuleBase:
         """Read and check a rule base file; every problem is a one-line SceneError."""
         path = Path(path)
@@ -90,21 +84,6 @@ class RuleBase:
         except tomllib.TOMLDecodeError as exc:
             raise SceneError(f"{path}: not valid TOML: {exc}") from None
         return _parse(path, data)
-
-    @classmethod
-    def from_file(cls, path: str | Path) -> RuleBase:
-        """A TOML rule base, or a MATLAB .fis file that one can express (bwr_twin.fis.convert:
-        two inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
-        path = Path(path)
-        if path.suffix.lower() == ".fis":
-            from bwr_twin.fis.convert import fis_to_rulebase  # bwr_twin.fis builds on this module
-            from bwr_twin.fis.reader import read_fis
-
-            try:
-                return fis_to_rulebase(read_fis(path))
-            except SceneError as exc:
-                raise SceneError(f"{exc} (as a rule base of the fuzzy_model controller: docs/fis.md)") from None
-        return cls.from_toml(path)
 
     def digest(self) -> str:
         """sha256 of the content (not of the file or its comments): the surface cache key."""
@@ -236,7 +215,6 @@ def _parse(path: Path, data: dict[str, Any]) -> RuleBase:
         defuzzify=choices["inference.defuzzify"],
         path=path,
     )
-
 
 
 def _type(value: Any) -> str:

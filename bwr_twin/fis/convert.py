@@ -8,6 +8,9 @@ else in a .fis has no place in the TOML file and is refused with a one-line Scen
 it. The TOML's input_points and output_points are skfuzzy's sampling, which a .fis does not hold:
 converting to .fis drops them (a comment says which they were) and converting back writes
 RuleBase's defaults for that number of sets.
+
+`load_rule_base` reads the fuzzy_model controller's rule base, TOML or .fis: the choice sits here,
+above both, so that bwr_twin.control.rulebase knows nothing of .fis.
 """
 
 from __future__ import annotations
@@ -215,6 +218,18 @@ def rulebase_toml(rule_base: RuleBase, source: str, system: FuzzySystem | None =
     return "\n".join(out) + "\n"
 
 
+def load_rule_base(path: str | Path) -> RuleBase:
+    """A rule base file as the fuzzy_model controller reads it: a TOML rule base, or a .fis one can
+    express (two inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
+    path = Path(path)
+    if path.suffix.lower() != ".fis":
+        return RuleBase.from_toml(path)
+    try:
+        return fis_to_rulebase(read_fis(path))
+    except SceneError as exc:
+        raise SceneError(f"{exc} (as a rule base of the fuzzy_model controller: docs/fis.md)") from None
+
+
 def load_system(path: str | Path) -> FuzzySystem:
     """A .fis file, or a TOML rule base converted to a FuzzySystem (by the suffix)."""
     path = Path(path)
@@ -222,12 +237,12 @@ def load_system(path: str | Path) -> FuzzySystem:
     if suffix == ".fis":
         return read_fis(path)
     if suffix == ".toml":
-        rule_base = load_rulebase(path)
+        rule_base = _toml_rule_base(path)
         return rulebase_to_fis(rule_base, name=path.stem)
     raise SceneError(f"{path}: unknown input suffix {path.suffix!r} (known: {', '.join(SUFFIXES)})")
 
 
-def load_rulebase(path: Path) -> RuleBase:
+def _toml_rule_base(path: Path) -> RuleBase:
     """RuleBase.from_toml, with the line of the offending key added to its message where it can."""
     try:
         return RuleBase.from_toml(path)
@@ -241,7 +256,7 @@ def output_text(system: FuzzySystem, out: Path, source: str) -> str:
     if suffix == ".fis":
         comments = [f"Converted by `python -m bwr_twin.fis convert` from {source}."]
         if Path(source).suffix.lower() == ".toml":
-            rule_base = load_rulebase(Path(source))
+            rule_base = _toml_rule_base(Path(source))
             comments.append(
                 f"The rule base evaluated e and ec on {rule_base.input_points} samples and the output on "
                 f"{rule_base.output_points} (skfuzzy); a .fis holds no sample counts (evalfis uses 101)."
