@@ -225,9 +225,9 @@ def test_a_pid_over_the_wire_tracks_the_path_as_it_does_in_process(servers, shor
     while loop.k < PID_PERIODS:
         q, qd = loop.measure()
         local_q.append(q[0].copy())
-        loop.advance(pid(q[0], qd[0], loop.q_desired[loop.k], loop.qd_desired[loop.k])[None])
+        loop.advance(pid(q[0], qd[0], loop.path[0][loop.k], loop.path[1][loop.k])[None])
     np.testing.assert_array_equal(wire_q, np.array(local_q))
-    np.testing.assert_array_equal(wire_ref, loop.q_desired[:PID_PERIODS])
+    np.testing.assert_array_equal(wire_ref, loop.path[0][:PID_PERIODS])
 
     # Tracking: a PID at 2 rad/s holds this gentle start of the paper path within two encoder
     # counts per axis (the encoders' resolution: 1.53 mm, 1.53 mrad, 0.76 mrad); measured: 2.8 mm,
@@ -449,7 +449,7 @@ def test_ctrl_c_stops_the_server_with_status_130(servers):
 def test_the_reclaim_rate_is_published_as_the_wheel_digs():
     from test_stockpile import SHORT_DIG
 
-    from bwr_twin.control.registry import controller_class
+    from bwr_twin.config.plugins import controller_class
     from bwr_twin.serve.twin import Twin
 
     twin = Twin(load_scene(find_scene("heavy_dig_pile"), SHORT_DIG))

@@ -12,7 +12,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
-import math
 import sys
 import types
 import typing
@@ -25,7 +24,15 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from bwr_twin.config.plugins import (
+    CONTROLLERS,
+    RATE_CONTROLS,
+    controller_class,
+    is_file_reference,
+    rate_control_class,
+)
 from bwr_twin.errors import SceneError
+from bwr_twin.values import is_integer, is_number
 
 Vec3 = tuple[float, float, float]
 
@@ -71,7 +78,7 @@ class DisturbanceSection:
 
 @dataclass(frozen=True)
 class ControllerSection:
-    """`[controller]`: `type` names the controller (bwr_twin.control.registry), the other keys
+    """`[controller]`: `type` names the controller (bwr_twin.config.plugins), the other keys
     are its settings, an instance of that controller's `Settings` dataclass."""
 
     type: str
@@ -101,8 +108,6 @@ class ControllerSection:
 
 
 def _controller_section(type_name: str, values: dict[str, Any]) -> ControllerSection:
-    from bwr_twin.control.registry import controller_class
-
     values = {k: v for k, v in values.items() if k != "type"}
     return ControllerSection(type_name, controller_class(type_name).Settings(**values))
 
@@ -171,7 +176,7 @@ class RateControlSection:
     pulses with every bucket).
     """
 
-    type: str = "open_loop"
+    type: str = RATE_CONTROLS.default
     gain: float = 0.5  # trim per unit of relative rate error
     integral_time: float = 4.0  # s
     filter_time: float = 1.0  # s, first-order low-pass on the measured rate
@@ -313,10 +318,8 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
 
 def _controller_type(raw: dict) -> str:
     """The controller type a raw scene names, or the default one."""
-    from bwr_twin.control.registry import DEFAULT
-
     table = raw.get("controller")
-    return table.get("type", DEFAULT) if isinstance(table, dict) else DEFAULT
+    return table.get("type", CONTROLLERS.default) if isinstance(table, dict) else CONTROLLERS.default
 
 
 def _merged(base: dict, over: dict) -> dict:
@@ -339,7 +342,7 @@ def _rename_tables(raw: dict) -> dict:
 # ends in "_file", and the file part of a controller type "my_controller.py:MyController".
 PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
 # Keys that name a class, built in or "file.py:ClassName" relative to the scene file.
-CLASS_KEYS = ("controller.type", "reclaim.rate_control.type")
+CLASS_KEYS = (CONTROLLERS.key, RATE_CONTROLS.key)
 
 
 def _is_path_key(dotted: str) -> bool:
@@ -348,8 +351,6 @@ def _is_path_key(dotted: str) -> bool:
 
 
 def _resolve_class_reference(value: Any, base: Path) -> Any:
-    from bwr_twin.control.registry import is_file_reference
-
     if not (isinstance(value, str) and is_file_reference(value)):
         return value
     file, _, name = value.rpartition(":")
@@ -485,11 +486,10 @@ def _convert(hint: Any, value: Any, path: Path, key: str) -> Any:
 def _build_controller(table: Any, path: Path, where: str) -> ControllerSection:
     """[controller]: its `type` picks the Settings dataclass that the other keys must fill."""
     from bwr_twin.control.interface import SettingsError
-    from bwr_twin.control.registry import DEFAULT, controller_class
 
     if not isinstance(table, dict):
         raise SceneError(f"{path}: [{where}] must be a table")
-    type_name = table.get("type", DEFAULT)
+    type_name = table.get("type", CONTROLLERS.default)
     if not isinstance(type_name, str):
         raise SceneError(f"{path}: '{where}.type' must be a string, got {type_name!r}")
     try:
@@ -592,8 +592,6 @@ def _check_reclaim(scene: Scene) -> None:
     if not value > 0:
         raise SceneError(f"{p}: 'reclaim.stop.{key}' must be > 0, got {value}")
     control = r.rate_control
-    from bwr_twin.control.rate import rate_control_class
-
     try:
         rate_control_class(control.type)
     except SceneError as exc:
@@ -649,12 +647,3 @@ def _plain(value: Any) -> Any:
         return str(value)
     return value
 
-
-def is_number(value: Any) -> bool:
-    """A finite TOML (or JSON) integer or float. TOML writes nan and inf, which no setting may be;
-    Python's bool is an int, but true is not a number."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def is_integer(value: Any) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)

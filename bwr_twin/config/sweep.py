@@ -38,9 +38,10 @@ else:  # pragma: no cover
 
 import numpy as np
 
-from bwr_twin.config.scene import PATH_KEYS, Scene, is_integer, is_number, load_scene
+from bwr_twin.config.scene import PATH_KEYS, Scene, load_scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
+from bwr_twin.values import is_integer, is_number
 
 _TOP_LEVEL_KEYS = ("scene", "seeds", "vary")
 _RANGE_KEYS = ("start", "stop", "num", "step")

@@ -41,10 +41,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bwr_twin.config.scene import Scene, is_integer, is_number, load_scene
+from bwr_twin.config.scene import Scene, load_scene
 from bwr_twin.config.sweep import axis_components, lookup, scene_overrides
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
+from bwr_twin.values import is_integer, is_number
 
 if sys.version_info >= (3, 11):
     import tomllib

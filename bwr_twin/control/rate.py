@@ -9,18 +9,38 @@ energy x dug volume a second + the power of the wheel turning empty).
 
 A rate control sees every run of a lockstep at once, once a control period, and returns each
 run's trim. An engineer's own derives from `RateControl` and is named in the scene as
-`[reclaim.rate_control] type = "my_rate.py:MyRateControl"`.
+`[reclaim.rate_control] type = "my_rate.py:MyRateControl"` (bwr_twin.config.plugins). It is given
+numbers, not scenes: the settings, and each run's target and wheel calibration as arrays.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from bwr_twin.config.scene import RateControlSection, Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
+
+
+class RateSettings(Protocol):
+    """The scene's [reclaim.rate_control], as a rate loop reads it."""
+
+    gain: float  # trim per unit of relative rate error
+    integral_time: float  # s
+    filter_time: float  # s
+    trim_limits: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class WheelCalibration:
+    """Every run's digging load, which turns the wheel drive's power into a rate:
+    rate = (power - idle_power) / cutting_energy x bulk_density. NaN for a run without [digging]."""
+
+    idle_power: np.ndarray  # (runs,) W
+    cutting_energy: np.ndarray  # (runs,) J/m^3
+    bulk_density: np.ndarray  # (runs,) kg/m^3
 
 
 @dataclass(frozen=True)
@@ -40,11 +60,11 @@ class RateControl:
         settings: the scene's [reclaim.rate_control].
         target: (runs,) t/h.
         period: s between calls.
-        scenes: the lockstep's scenes, one per run (their [digging] calibrates a power loop).
+        wheel: each run's calibration of the wheel drive's power.
     """
 
-    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
-        self.settings, self.target, self.period, self.scenes = settings, target, period, scenes
+    def __init__(self, settings: RateSettings, target: np.ndarray, period: float, wheel: WheelCalibration):
+        self.settings, self.target, self.period, self.wheel = settings, target, period, wheel
 
     def trim(self, signals: RateSignals) -> np.ndarray:
         """Each run's factor on the planned slew speed, (runs,)."""
@@ -58,8 +78,8 @@ class RateFeedback(RateControl):
     pass starts from the speed law (the next face is another). `measured` gives the rate the
     loop sees, in t/h."""
 
-    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
-        super().__init__(settings, target, period, scenes)
+    def __init__(self, settings: RateSettings, target: np.ndarray, period: float, wheel: WheelCalibration):
+        super().__init__(settings, target, period, wheel)
         self._integral = np.zeros(len(target))  # relative error x s
         self._filtered = np.zeros(len(target))  # t/h
         self._smoothing = period / (settings.filter_time + period)
@@ -90,31 +110,11 @@ class WheelPower(RateFeedback):
     """Trims from the wheel drive's power, calibrated to t/h by the scene's [digging]:
     rate = (power - idle power) / cutting energy x bulk density."""
 
-    def __init__(self, settings: RateControlSection, target: np.ndarray, period: float, scenes: list[Scene]):
-        super().__init__(settings, target, period, scenes)
-        if any(s.digging is None for s in scenes):
-            raise SceneError(f"{scenes[0].path}: 'reclaim.rate_control.type' \"wheel_power\" needs [digging]")
-        self._idle = np.array([s.digging.idle_power for s in scenes])
-        self._tonnes_per_joule = np.array([s.stockpile.bulk_density / s.digging.cutting_energy for s in scenes]) \
-            * (SECONDS_PER_HOUR / KG_PER_T)
+    def __init__(self, settings: RateSettings, target: np.ndarray, period: float, wheel: WheelCalibration):
+        super().__init__(settings, target, period, wheel)
+        if np.isnan(wheel.idle_power).any() or np.isnan(wheel.cutting_energy).any():
+            raise SceneError("'reclaim.rate_control.type' \"wheel_power\" needs [digging]")
+        self._tonnes_per_joule = wheel.bulk_density / wheel.cutting_energy * (SECONDS_PER_HOUR / KG_PER_T)
 
     def measured(self, signals: RateSignals) -> np.ndarray:
-        return np.maximum(signals.wheel_power - self._idle, 0.0) * self._tonnes_per_joule
-
-
-BUILT_IN = {"open_loop": RateControl, "belt_scale": BeltScale, "wheel_power": WheelPower}
-
-
-def rate_control_class(name: str) -> type[RateControl]:
-    """The class a scene's `reclaim.rate_control.type` names; SceneError if there is none."""
-    from pathlib import Path
-
-    from bwr_twin.control.registry import class_in_file, is_file_reference
-
-    if name in BUILT_IN:
-        return BUILT_IN[name]
-    if not is_file_reference(name):
-        raise SceneError(f"'reclaim.rate_control.type' must be one of {', '.join(BUILT_IN)} or "
-                         f"\"file.py:ClassName\", got {name!r}")
-    file, _, attribute = name.rpartition(":")
-    return class_in_file(Path(file), attribute, RateControl, "reclaim.rate_control.type")
+        return np.maximum(signals.wheel_power - self.wheel.idle_power, 0.0) * self._tonnes_per_joule
