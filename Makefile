@@ -11,7 +11,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
 	@echo "computing the fuzzy control surface with scikit-fuzzy (once, then cached) ..."
-	$(PY) -c "from bwr_twin.control.fuzzy import FuzzySurface; from bwr_twin.control.rulebase import RuleBase; FuzzySurface.load(RuleBase.paper())"
+	$(PY) -c "from bwr_twin.control.fuzzy import FuzzySurface; from bwr_twin.control.rulebase import RuleBase; from bwr_twin.shipped import RULE_BASES; FuzzySurface.load(RuleBase.from_toml(RULE_BASES / 'paper_table2.toml'))"
 	touch $@
 
 setup: $(VENV)/.installed
