@@ -13,10 +13,8 @@ exits with status 2 and a one-line message; nothing is written.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from bwr_twin.errors import exit_status
@@ -31,27 +29,6 @@ def scene_overrides(model: str | None = None, seed: int | None = None) -> dict:
     if seed is not None:
         overrides["simulation.seed"] = seed
     return overrides
-
-
-@contextlib.contextmanager
-def simulation_progress_bar() -> Iterator[Callable[[float, float], None]]:
-    """A `simulate` progress callback that draws a bar of simulated seconds on a terminal."""
-    from tqdm import tqdm
-
-    bar = None
-
-    def advance(done: float, total: float) -> None:
-        nonlocal bar
-        if bar is None:  # the path's duration is known once the simulation reports
-            bar = tqdm(total=round(total), desc="simulating", unit="s", leave=False,
-                       disable=not sys.stderr.isatty())
-        bar.update(round(done) - bar.n)
-
-    try:
-        yield advance
-    finally:
-        if bar is not None:
-            bar.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -72,9 +49,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
-    from bwr_twin.results.metrics import summary_table
+    from bwr_twin.progress import simulated_seconds
     from bwr_twin.results.ownership import check_output
     from bwr_twin.results.rundir import write_run
+    from bwr_twin.results.summary import summary_table
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate
 
@@ -83,7 +61,7 @@ def _run(args: argparse.Namespace) -> int:
     cost = estimate([scene], plots=not args.no_plots)
     check_estimate(cost, where=scene.path, out_dir=args.out, force=args.force)
     started = time.perf_counter()
-    with simulation_progress_bar() as progress:
+    with simulated_seconds() as progress:
         result = simulate(scene, progress=progress)
     simulated = time.perf_counter() - started
     metrics = write_run(result, args.out, overwrite=args.overwrite, plots=not args.no_plots)

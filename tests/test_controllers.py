@@ -17,6 +17,7 @@ from bwr_twin.control import ControllerContext
 from bwr_twin.control.computed_torque import ComputedTorqueController, ComputedTorqueSettings
 from bwr_twin.control.pid import PidController, PidSettings
 from bwr_twin.model.machine import Machine
+from bwr_twin.results.rundir import timeseries_columns
 from bwr_twin.sim.lockstep import lockstep_key, simulate, simulate_lockstep
 
 DOC = ROOT / "docs" / "controllers.md"
@@ -91,13 +92,24 @@ def test_every_baseline_scene_tracks_the_first_minute_of_its_path(name, tmp_path
     assert result.metrics["limits"] == []
 
 
-def test_a_controller_without_fuzzy_logic_records_nan_in_its_columns(tmp_path):
+def test_each_controller_records_the_signals_it_declares_and_no_others(tmp_path):
+    """A PID declares none: its run has no fuzzy or acceleration columns at all; the fuzzy
+    controller records its FLC output and acceleration command, and its CSV names them with units."""
     scene = load_scene(short_with_controller(tmp_path, '[controller]\ntype = "pid"\n'
                                              "kp = [28000.0, 7262500.0, 5000000.0]\nki = [0.0, 0.0, 0.0]\n"
                                              "kd = [28000.0, 7262500.0, 5000000.0]\n"))
-    result = simulate(scene)
-    assert np.isnan(result.fuzzy_output).all() and np.isnan(result.acceleration_command).all()
-    assert np.isfinite(result.drive_force_command).all()
+    pid = simulate(scene)
+    assert pid.controller_signals == {} and np.isfinite(pid.drive_force_command).all()
+    names, _ = timeseries_columns(pid)
+    assert not [name for name in names if "fuzzy" in name or "acceleration_command" in name]
+
+    fuzzy = simulate(load_scene(write_short_scene(tmp_path)))
+    assert set(fuzzy.controller_signals) == {"fuzzy_output", "acceleration_command"}
+    assert np.abs(fuzzy.controller_signals["fuzzy_output"]).max() <= 4.5  # the output universe
+    names, values = timeseries_columns(fuzzy)
+    column = dict(zip(names, values.T))
+    np.testing.assert_array_equal(column["slew_fuzzy_output_1"], fuzzy.controller_signals["fuzzy_output"][:, 1])
+    assert "luff_acceleration_command_rad/s2" in column
 
 
 def test_pid_clips_to_the_drive_ratings_and_stops_winding_up():

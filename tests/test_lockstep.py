@@ -10,7 +10,7 @@ import pytest
 from conftest import HEAVY_MJCF, PAPER_MJCF, SHORT_VIA_POINTS, write_short_scene
 
 from bwr_twin import Machine
-from bwr_twin.config.scene import EncoderSection, load_scene
+from bwr_twin.config.scene import load_scene
 from bwr_twin.control.belief import Belief
 from bwr_twin.control.controller import FuzzyModelController
 from bwr_twin.control.fuzzy import FuzzySurface
@@ -19,6 +19,7 @@ from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.results.rundir import METRICS_FILE, write_run
 from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.lockstep import lockstep_key, simulate, simulate_lockstep
+from bwr_twin.sim.parameters import RunParameters
 
 
 @pytest.fixture(scope="module")
@@ -126,19 +127,20 @@ def test_with_zero_fuzzy_output_the_force_is_the_bias_and_with_feedforward_inver
         np.testing.assert_allclose(tau[run], data.qfrc_inverse + data.qfrc_passive, rtol=1e-10, atol=1e-9)
 
 
-def test_encoders_quantise_and_estimate_the_velocity_of_a_ramp():
+def test_encoders_quantise_and_estimate_the_velocity_of_a_ramp(short_scene):
     """A ramp at constant speed: positions are quantised to the resolution, and the estimated
     velocity, averaged over the last 5 s, is the ramp's speed; the other run sees the true one."""
     period, speed = 0.01, np.array([0.2, 0.02, -0.01])  # m/s, rad/s, rad/s
     resolution = (0.00153, 0.00153, 0.00076)
-    settings = [EncoderSection(resolution, velocity_source="encoder", velocity_filter=0.5),
-                EncoderSection(resolution)]
-    encoders = Encoders(settings, period, np.zeros(3))
+    scenes = [load_scene(short_scene, {"encoders.resolution": list(resolution), "encoders.velocity_source": source,
+                                       "encoders.velocity_filter": 0.5}) for source in ("encoder", "true")]
+    encoders = Encoders(RunParameters.of(scenes), period, np.zeros(3))
     estimates = []
+    q_measured, qd_measured = np.zeros((2, 3)), np.zeros((2, 3))
     for k in range(1, 1001):  # 10 s, twenty filter time constants
         q = np.tile(speed * k * period, (2, 1))
-        q_measured, qd_measured = encoders.measure(q, np.tile(speed, (2, 1)))
-        estimates.append(qd_measured[0])
+        encoders.measure(q, np.tile(speed, (2, 1)), q_measured, qd_measured)
+        estimates.append(qd_measured[0].copy())
     np.testing.assert_array_equal(q_measured, np.round(q / resolution) * resolution)
     assert np.all(np.abs(q_measured - q) <= np.array(resolution) / 2)
     np.testing.assert_allclose(np.mean(estimates[-500:], axis=0), speed, rtol=0.05)

@@ -1,22 +1,30 @@
-"""Speed of the lockstep engine against MuJoCo's own floor, measured in one process.
+"""Speed of the twin against MuJoCo's own floor, each figure measured in one process.
 
-    python tools/bench.py [SCENE] [--runs 128] [--threads 0] [--repeat 2]
+    python tools/bench.py [--runs 128] [--threads 0] [--repeat 3] [--only NAME ...]
 
-Runs the scene over `--runs` seeds as one lockstep (`simulate_lockstep`, no file output) and,
-alternating with it, MuJoCo's floor for the same work: a bare `Batch.step` of a physics-only
-copy of the machine over the same runs, physics steps and threads, one call per control period,
-with nothing in between. Keeps the best of `--repeat` of each (the machine is shared and noisy)
-and prints `floor ratio: X` (lockstep time over floor time; target <= 1.3). Then prints the time
-of a single run (a lockstep of one) and the cost of one fuzzy evaluation against scikit-fuzzy's
-own `compute()`.
+MuJoCo's floor is bare stepping of a physics-only copy of the machine: `Batch.step`, one call
+per control period, over the same runs, physics steps and threads, with nothing in between; the
+machine rests at the path's start, its weight held by constant drive forces (left to fall, it
+would rest on an end stop, whose constraint makes every step dearer than the closed loop's).
+Each figure alternates the measured code with its floor `--repeat` times, keeps the best of
+each (the machine is shared and noisy), and prints the spread of the ratios beside it:
+
+    floor ratio:        a lockstep of `--runs` paper runs (700 s) against its floor  (target <= 1.15)
+    single-run ratio:   one paper run alone against one run's floor                   (target <= 3)
+    bench-reclaim ratio: heavy_bench_reclaim alone against its floor                  (target <= 8)
+    gym ratio:          a Gymnasium single-env step against one floor control period  (target <= 4)
+    replay timeline:    s from the machine on screen to the timeline ready            (target <= 3 s)
+
+The replay's figure needs Debian's chromium and playwright (tools/bench_replay.py).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
-import timeit
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -24,23 +32,20 @@ from mujoco.batch import Batch
 
 from bwr_twin.batch.cli import MAX_CHUNK
 from bwr_twin.config.scene import load_scene
-from bwr_twin.control.fuzzy import FuzzySurface, skfuzzy_compute
-from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.model.machine import Machine
-from bwr_twin.planning.trajectory import Trajectory
-from bwr_twin.shipped import DEFAULT_SCENE
-from bwr_twin.sim.lockstep import simulate, simulate_lockstep
+from bwr_twin.shipped import DEFAULT_SCENE, find_scene
+from bwr_twin.sim.lockstep import Lockstep, simulate, simulate_lockstep
+
+FIGURES = ("floor", "single-run", "bench-reclaim", "gym", "replay")
 
 
-def floor(scene, runs: int, threads: int, periods: int) -> float:
-    """Wall time of bare Batch.step calls, one per control period, s: the machine at the path's
-    start, its weight held by constant drive forces (left to fall, it would rest on an end
-    stop, whose constraint makes every step dearer than the closed loop's)."""
+def floor(scene, runs: int, threads: int, periods: int, q0: np.ndarray) -> float:
+    """Wall time of bare Batch.step calls, one per control period, s, the machine held at q0."""
     sim = scene.simulation
     machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
     model = machine.physics_model(sim.timestep)
     data = mujoco.MjData(model)
-    data.qpos[:] = Trajectory.plan(scene.trajectory, machine).knots[0]
+    data.qpos[:] = q0
     mujoco.mj_forward(model, data)
     batch = Batch(model, runs, nthread=threads)
     batch.qpos[:] = data.qpos
@@ -52,51 +57,130 @@ def floor(scene, runs: int, threads: int, periods: int) -> float:
     return time.perf_counter() - started
 
 
+def compare(name: str, measured, bare, repeat: int) -> tuple[float, float]:
+    """Alternate `measured()` and `bare()` (each returns its own time, s) `repeat` times; print
+    and return (best measured, best floor)."""
+    pairs = []
+    for _ in range(repeat):
+        floor_time = bare()
+        pairs.append((measured(), floor_time))
+    best, best_floor = min(m for m, _ in pairs), min(f for _, f in pairs)
+    ratios = sorted(m / f for m, f in pairs)
+    print(f"{name} ratio: {best / best_floor:.2f}  (best {best:.3f} s against a floor of {best_floor:.3f} s; "
+          f"ratios of the {repeat} pairs {ratios[0]:.2f}-{ratios[-1]:.2f})", flush=True)
+    return best, best_floor
+
+
+def timed(work) -> float:
+    started = time.perf_counter()
+    work()
+    return time.perf_counter() - started
+
+
+def lockstep_figure(base, args) -> None:
+    scenes = [load_scene(base.path, {"simulation.seed": seed}) for seed in range(1, args.runs + 1)]
+    periods, q0 = path_periods(base)
+    threads = args.threads or os.cpu_count()
+    print(f"{args.runs} paper runs of {(periods - 1) * base.simulation.control_period:g} s in one lockstep "
+          f"on {threads} threads:")
+    best, _ = compare("floor", lambda: timed(lambda: simulate_lockstep(scenes, nthread=args.threads)),
+                      lambda: floor(base, args.runs, args.threads, periods, q0), args.repeat)
+    steps = periods * round(base.simulation.control_period / base.simulation.timestep)
+    print(f"  {best / args.runs:.3f} s a run, {1e6 * best / (args.runs * steps):.2f} us a physics step")
+
+
+def single_figure(base, args) -> None:
+    periods, q0 = path_periods(base)
+    best, _ = compare("single-run", lambda: timed(lambda: simulate(base)),
+                      lambda: floor(base, 1, 1, periods, q0), args.repeat)
+    duration = (periods - 1) * base.simulation.control_period
+    print(f"  one paper run: {duration:g} s simulated in {best:.2f} s, {duration / best:.0f}x real time")
+
+
+def bench_reclaim_figure(args) -> None:
+    scene = load_scene(find_scene("heavy_bench_reclaim"))
+    result = simulate(scene)  # its length, and the numba caches warm
+    periods = round(result.metrics["run"]["duration"] / scene.simulation.control_period) + 1
+    q0 = Lockstep([scene], nthread=1, observe=False).tracking.start
+    best, _ = compare("bench-reclaim", lambda: timed(lambda: simulate(scene)),
+                      lambda: floor(scene, 1, 1, periods, q0), args.repeat)
+    duration = result.metrics["run"]["duration"]
+    print(f"  heavy_bench_reclaim: {duration:.0f} s simulated in {best:.2f} s")
+
+
+def gym_figure(base, args) -> None:
+    import gymnasium
+
+    import bwr_twin.gym  # noqa: F401  (registers the id)
+    from bwr_twin.gym import ENV_ID
+
+    env = gymnasium.make(ENV_ID, scene=str(base.path), disable_env_checker=True)
+    steps, action = 5000, np.zeros(3, dtype=np.float32)
+    _, q0 = path_periods(base)
+
+    def steps_time() -> float:
+        env.reset(seed=1)
+        started = time.perf_counter()
+        for _ in range(steps):
+            env.step(action)
+        return (time.perf_counter() - started) / steps
+
+    steps_time()  # warm
+    best, _ = compare("gym", steps_time, lambda: floor(base, 1, 1, steps, q0) / steps, args.repeat)
+    print(f"  {1 / best:,.0f} steps/s ({1e6 * best:.1f} us a step)")
+
+
+def replay_figure(args) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_replay import machine_triangles, measure
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from headless import chromium_context, find_chromium
+
+    chromium = find_chromium()
+    if chromium is None:
+        print("replay timeline: not measured (no chromium)")
+        return
+    triangles = machine_triangles(DEFAULT_SCENE)
+    gaps = []
+    with chromium_context(chromium) as browser:
+        for _ in range(args.repeat):
+            page = browser.new_page()
+            shown, ready = measure(page, DEFAULT_SCENE, False, triangles)
+            page.close()
+            gaps.append(ready - shown if ready is not None else float("inf"))
+    gaps.sort()
+    print(f"replay timeline: {gaps[0]:.2f} s from the machine on screen to the timeline ready "
+          f"(best of {args.repeat}, spread {gaps[0]:.2f}-{gaps[-1]:.2f} s)")
+
+
+def path_periods(scene) -> tuple[int, np.ndarray]:
+    """The control periods of a path scene, and where it starts."""
+    tracking = Lockstep([scene], nthread=1, observe=False).tracking
+    return tracking.samples, tracking.start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE))
     parser.add_argument("--runs", type=int, default=MAX_CHUNK, help="runs in the lockstep (default: a batch's largest)")
     parser.add_argument("--threads", type=int, default=0, help="MuJoCo batch threads (0: all cores)")
-    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--only", nargs="+", choices=FIGURES, default=FIGURES)
     args = parser.parse_args()
 
-    base = load_scene(args.scene)
-    scenes = [load_scene(args.scene, {"simulation.seed": seed}) for seed in range(1, args.runs + 1)]
-    sim = base.simulation
-    duration = base.trajectory.via_points[-1].t - base.trajectory.via_points[0].t
-    periods = round(duration / sim.control_period) + 1
-    simulate(base)  # warm the fuzzy surface cache and imports
-    lockstep_times, floor_times = [], []
-    for _ in range(args.repeat):
-        floor_times.append(floor(base, args.runs, args.threads, periods))
-        started = time.perf_counter()
-        simulate_lockstep(scenes, nthread=args.threads)
-        lockstep_times.append(time.perf_counter() - started)
-    lockstep, bare = min(lockstep_times), min(floor_times)
-    steps = periods * round(sim.control_period / sim.timestep)
-    threads = args.threads or os.cpu_count()
-    print(f"scene: {base.path.name}, {duration:g} s simulated, {steps} physics steps of "
-          f"{sim.timestep * 1e3:g} ms a run, control every {sim.control_period * 1e3:g} ms; "
-          f"{args.runs} runs in one lockstep on {threads} threads")
-    print(f"lockstep: {lockstep:.2f} s (best of {args.repeat}), {lockstep / args.runs:.3f} s a run, "
-          f"{1e6 * lockstep / (args.runs * steps):.2f} us a physics step")
-    print(f"floor, bare Batch.step: {bare:.2f} s, {1e6 * bare / (args.runs * steps):.2f} us a physics step")
-    print(f"floor ratio: {lockstep / bare:.2f}")
-
-    started = time.perf_counter()
-    simulate(base)
-    single = time.perf_counter() - started
-    print(f"single run (a lockstep of one): {single:.2f} s, {duration / single:.0f}x real time")
-
-    rule_base = RuleBase.from_toml(base.controller.settings.rule_base)
-    surface = FuzzySurface.load(rule_base)
-    rng = np.random.default_rng(0)
-    e, ec, out = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3), np.zeros(3)
-    n = 100_000
-    fast = timeit.timeit(lambda: surface.evaluate(e, ec, out=out), number=n) / n
-    slow = min(timeit.repeat(lambda: skfuzzy_compute(rule_base, float(e[0]), float(ec[0])), number=5, repeat=3)) / 5 * 3
-    print(f"fuzzy, 3 axes per control period: compiled surface {fast * 1e6:.2f} us, "
-          f"skfuzzy compute() {slow * 1e3:.1f} ms ({slow / fast:,.0f}x slower)")
+    base = load_scene(DEFAULT_SCENE)
+    simulate(base)  # warm the fuzzy surface cache, the compiled kernels and the imports
+    for figure in args.only:
+        if figure == "floor":
+            lockstep_figure(base, args)
+        elif figure == "single-run":
+            single_figure(base, args)
+        elif figure == "bench-reclaim":
+            bench_reclaim_figure(args)
+        elif figure == "gym":
+            gym_figure(base, args)
+        else:
+            replay_figure(args)
 
 
 if __name__ == "__main__":

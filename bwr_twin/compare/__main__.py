@@ -44,10 +44,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from bwr_twin.compare.report import write_comparison
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.progress import simulated_seconds
     from bwr_twin.results.ownership import check_output
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate_grouped
@@ -66,16 +65,15 @@ def _compare(args: argparse.Namespace) -> int:
     inputs = {file for scene in scenes for file in scene.input_files} | set(sources)
     check_output(args.out, "comparison", overwrite=args.overwrite, inputs=inputs)
     check_estimate(estimate(scenes, chunk=args.seeds), where=base, out_dir=args.out, force=args.force)
+    with simulated_seconds("comparing") as progress:
+        outcomes = simulate_grouped(scenes, progress=progress)
     results = []
-    with tqdm(total=len(scenes), desc="comparing", unit="run", disable=not sys.stderr.isatty()) as bar:
-        for label, group in zip(labels, groups):
-            bar.set_postfix_str(label)
-            outcome = simulate_grouped(group)
-            failed = [r for r in outcome if isinstance(r, BwrError)]
-            if failed:
-                raise BwrError(f"controller {label}: {failed[0]}")
-            results.append(outcome)
-            bar.update(len(group))
+    for label, group in zip(labels, groups):
+        outcome, outcomes = outcomes[: len(group)], outcomes[len(group) :]
+        failed = [r for r in outcome if isinstance(r, BwrError)]
+        if failed:
+            raise BwrError(f"controller {label}: {failed[0]}")
+        results.append(outcome)
     table = write_comparison(args.out, labels, results, overwrite=args.overwrite)
     print(table, end="")
     print(f"{len(labels)} controllers x {args.seeds} seeds on {base.name}; results in {args.out}/")

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure  # no pyplot: no global state, no display b
 
 from bwr_twin.compare.table import as_csv, as_markdown, comparison_rows
 from bwr_twin.model.machine import AXES, UNITS, to_display
-from bwr_twin.results.record import RunResult
+from bwr_twin.sim.record import RunResult
 from bwr_twin.results.rundir import staged_directory, write_run
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bwr_twin.control.interface import Controller, ControllerContext, check_non_negative
+from bwr_twin.signals import ACCELERATION_COMMAND
 
 Vec3 = tuple[float, float, float]
 
@@ -35,6 +36,7 @@ class ComputedTorqueController(Controller):
     """tau = M(q_hat) (qdd_ref + Kp e + Kd e') + bias(q_hat, qd_hat) for every run."""
 
     Settings = ComputedTorqueSettings
+    signals = (ACCELERATION_COMMAND,)
 
     def __init__(self, context: ControllerContext, settings: Sequence[ComputedTorqueSettings]):
         super().__init__(context, settings)
@@ -46,5 +48,4 @@ class ComputedTorqueController(Controller):
         u = self.acceleration_command
         np.add(qdd_ref, self._kp * (q_ref - q) + self._kd * (qd_ref - qd), out=u)
         self.belief.update(q, qd, ids)
-        # M u row by row, summed in a fixed order: a run's force does not depend on its neighbours.
-        return (self.belief.mass_matrix * u[:, None, :]).sum(axis=2) + self.belief.bias
+        return self.belief.torque(u)

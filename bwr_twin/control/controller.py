@@ -14,11 +14,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 
-from bwr_twin.control.fuzzy import FuzzySurface
+from bwr_twin.control.fuzzy import FuzzySurface, surface_at
 from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
 from bwr_twin.fis.convert import load_rule_base
+from bwr_twin.signals import ACCELERATION_COMMAND, FUZZY_OUTPUT
 
 Vec3 = tuple[float, float, float]
 
@@ -46,10 +48,12 @@ class FuzzyModelController(Controller):
     """Drive forces from measured and desired joint states, all (runs, 3).
 
     After `compute`, `fuzzy_output` (FLC output, in the output universe) and
-    `acceleration_command` (u, m/s^2 and rad/s^2) hold this period's values.
+    `acceleration_command` (u, m/s^2 and rad/s^2) hold this period's values: the signals it
+    declares for the record.
     """
 
     Settings = FuzzyModelSettings
+    signals = (FUZZY_OUTPUT, ACCELERATION_COMMAND)
 
     def __init__(self, context: ControllerContext, settings: Sequence[FuzzyModelSettings],
                  surface: FuzzySurface | None = None):
@@ -59,10 +63,7 @@ class FuzzyModelController(Controller):
         self._scale_e = self.per_run("input_scale_e")
         self._scale_ec = self.per_run("input_scale_ec")
         self._output_gain = self.per_run("output_gain")
-        self._feedforward = np.array([s.acceleration_feedforward for s in settings])[:, None]
-        self._any_feedforward = bool(self._feedforward.any())
-        self._e = np.zeros(self._output_gain.shape)
-        self._ec = np.zeros(self._output_gain.shape)
+        self._feedforward = np.array([s.acceleration_feedforward for s in settings])
         self.fuzzy_output = np.zeros(self._output_gain.shape)
         self.acceleration_command = np.zeros(self._output_gain.shape)
 
@@ -75,21 +76,31 @@ class FuzzyModelController(Controller):
         qdd_desired: np.ndarray,
         ids: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Drive forces (N, N m, N m), (runs, 3); the desired states broadcast against (runs, 3).
+        """Drive forces (N, N m, N m), (runs, 3); the desired states (3,) for every run, or (runs, 3).
 
         `ids` names the runs whose forces matter (None: all); the others get no belief update.
         """
-        e, ec, u = self._e, self._ec, self.acceleration_command
-        np.subtract(q_desired, q_measured, out=e)
-        e *= self._scale_e
-        np.subtract(qd_desired, qd_measured, out=ec)
-        ec *= self._scale_ec
-        # Flat views: a lockstep of one takes the surface's scalar fast path, with the same result.
-        self._surface.evaluate(e.ravel(), ec.ravel(), out=self.fuzzy_output.ravel())
-        np.multiply(self.fuzzy_output, self._output_gain, out=u)
-        if self._any_feedforward:
-            np.add(u, qdd_desired, out=u, where=self._feedforward)
+        _acceleration_command(q_measured, qd_measured, q_desired.reshape(-1, 3), qd_desired.reshape(-1, 3),
+                              qdd_desired.reshape(-1, 3), self._scale_e, self._scale_ec, self._output_gain,
+                              self._feedforward, self._surface.kernel, self.fuzzy_output, self.acceleration_command)
         self.belief.update(q_measured, qd_measured, ids)
-        # M u row by row, summed in a fixed order: a run's force does not depend on its neighbours.
-        inertial = (self.belief.mass_matrix * u[:, None, :]).sum(axis=2)
-        return inertial + self.belief.bias
+        return self.belief.torque(self.acceleration_command)
+
+
+@numba.njit(cache=True)
+def _acceleration_command(q_measured, qd_measured, q_desired, qd_desired, qdd_desired, scale_e, scale_ec,
+                          output_gain, feedforward, kernel, fuzzy_output, u):  # pragma: no cover - compiled
+    """u_i = K_out,i FLC(K_e e_i, K_ec ed_i) [+ qdd_d,i] for every run and axis; the reference
+    is (1, 3) when shared by every run."""
+    runs = q_measured.shape[0]
+    shared = q_desired.shape[0] == 1
+    for r in range(runs):
+        rr = 0 if shared else r
+        for j in range(3):
+            je, jec = (0 if scale_e.shape[1] == 1 else j), (0 if scale_ec.shape[1] == 1 else j)
+            e = (q_desired[rr, j] - q_measured[r, j]) * scale_e[r, je]
+            ec = (qd_desired[rr, j] - qd_measured[r, j]) * scale_ec[r, jec]
+            fuzzy_output[r, j] = surface_at(kernel, e, ec)
+            u[r, j] = fuzzy_output[r, j] * output_gain[r, j]
+            if feedforward[r]:
+                u[r, j] += qdd_desired[rr, j]

@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from bwr_twin.model.machine import AXES, Machine
+from bwr_twin.signals import Signal
 
 
 class SettingsError(ValueError):
@@ -64,14 +65,13 @@ class Controller(ABC):
     """Drive forces from the measured state and the reference, for every run of a lockstep.
 
     Subclasses set `Settings` to a frozen dataclass of their scene keys (it may define
-    `validate(self)`, raising SettingsError) and implement `compute`. They may keep
-    (runs, 3) arrays `acceleration_command` (m/s^2, rad/s^2) and `fuzzy_output` up to date; the
-    run records them (NaN where a controller has none).
+    `validate(self)`, raising SettingsError) and implement `compute`. A controller may declare
+    the extra signals a run records of it in `signals` (bwr_twin.signals.Signal): each is an
+    attribute of the same name, a (runs, 3) array that holds this period's value after `compute`.
     """
 
     Settings: ClassVar[type]
-    acceleration_command: np.ndarray | None = None
-    fuzzy_output: np.ndarray | None = None
+    signals: ClassVar[tuple[Signal, ...]] = ()
 
     def __init__(self, context: ControllerContext, settings: Sequence[Any]):
         self.context = context

@@ -88,7 +88,7 @@ class Episodes:
         if scene.reclaim is not None:
             raise SceneError(f"{scene.path}: bwr_twin/Reclaim-v0 follows a scene's [path]; this scene plans a "
                              "[reclaim], whose reference is decided as the run goes: give a scene with a [path]")
-        first = Lockstep([scene], nthread=1)
+        first = Lockstep([scene], nthread=1, observe=False)
         self.scales = Scales.of(first, error_scale)
         self.period = first.period
         self.envelope = first.machine.envelope
@@ -117,14 +117,14 @@ class Episodes:
         """Start new episodes in `slots`, with these scene seeds, in one new lockstep."""
         slots = np.asarray(slots, dtype=np.int64)
         scenes = [load_scene(self.scene, {**self.overrides, "simulation.seed": int(seed)}) for seed in seeds]
-        group = Group(Lockstep(scenes, nthread=self.nthread), slots)
+        group = Group(Lockstep(scenes, nthread=self.nthread, observe=False), slots)
         for slot in slots:
             self._leave(int(slot))
             self._group_of[slot] = group
         self._running[slots] = True
         self._groups.append(group)
         self.seed[slots] = seeds
-        self.error[slots] = group.loop.q_desired[0] - group.loop.plant.qpos
+        self.error[slots] = group.loop.path[0][0] - group.loop.q_true
         self._observe(group, group.runs)
 
     def step(self, actions: np.ndarray) -> Outcome:
@@ -147,12 +147,12 @@ class Episodes:
         command = np.zeros((loop.runs, 3))  # runs left behind get no force
         command[runs] = forces[slots]
         loop.advance(command)
-        q = loop.plant.qpos[runs]
+        q = loop.q_true[runs]
         failed = np.zeros(len(runs), dtype=bool)
-        if loop.plant.failures or not np.isfinite(q).all():
-            failed = np.isin(runs, list(loop.plant.failures)) | ~np.isfinite(q).all(axis=1)
+        if loop.failures or not np.isfinite(q).all():
+            failed = np.isin(runs, list(loop.failures)) | ~np.isfinite(q).all(axis=1)
         outside = (q < self.envelope[:, 0]) | (q > self.envelope[:, 1])
-        error = loop.q_desired[min(loop.k, loop.samples - 1)] - q
+        error = loop.path[0][min(loop.k, loop.samples - 1)] - q
         ending = failed.any() or outside.any() or loop.done
         if ending:
             error[failed] = self.error[slots[failed]]  # a diverged state has no error: keep the last
@@ -167,7 +167,7 @@ class Episodes:
         for i in np.flatnonzero(terminated | truncated):
             run, slot = int(runs[i]), int(slots[i])
             if failed[i]:
-                outcome.ended[slot] = f"diverged: {loop.plant.failures.get(run, 'non-finite state')}"
+                outcome.ended[slot] = f"diverged: {loop.failures.get(run, 'non-finite state')}"
             elif terminated[i]:
                 outcome.ended[slot] = "path end"
             else:
@@ -180,11 +180,12 @@ class Episodes:
         loop = group.loop
         q, qd = loop.measure()
         k = min(loop.k, loop.samples - 1)  # past the path's end the reference is its end point
+        q_desired, qd_desired, qdd_desired = loop.path
         slots = group.slots[runs]
-        self._q[slots], self._qd[slots], self._qdd_ref[slots] = q[runs], qd[runs], loop.qdd_desired[k]
+        self._q[slots], self._qd[slots], self._qdd_ref[slots] = q[runs], qd[runs], qdd_desired[k]
         self.elapsed[slots] = loop.k * loop.period
-        self.observation[slots] = self.scales.observe(q[runs], qd[runs], loop.q_desired[k], loop.qd_desired[k],
-                                                      loop.qdd_desired[k], loop.k * loop.period)
+        self.observation[slots] = self.scales.observe(q[runs], qd[runs], q_desired[k], qd_desired[k],
+                                                      qdd_desired[k], loop.k * loop.period)
 
     def _leave(self, slot: int) -> None:
         """End `slot`'s episode: its run stays behind in its lockstep, dropped once none is live."""

@@ -81,9 +81,10 @@ class Scales:
                 f"{', '.join(open_axes)} have none: give custom numerics envelope_<axis> or joint ranges"
             )
         half_width = (envelope[:, 1] - envelope[:, 0]) / 2
-        duration = loop.trajectory.duration
-        velocity = np.maximum(2 * np.abs(loop.qd_desired).max(axis=0), half_width / duration)
-        acceleration = np.maximum(2 * np.abs(loop.qdd_desired).max(axis=0), half_width / duration**2)
+        _, qd_desired, qdd_desired = loop.path
+        duration = loop.tracking.trajectory.duration
+        velocity = np.maximum(2 * np.abs(qd_desired).max(axis=0), half_width / duration)
+        acceleration = np.maximum(2 * np.abs(qdd_desired).max(axis=0), half_width / duration**2)
         return cls(envelope.mean(axis=1), half_width, velocity, acceleration,
                    at_cp(error_scale, loop.machine), duration)
 

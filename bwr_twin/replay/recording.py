@@ -27,7 +27,7 @@ from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.surface import Surface, build_surface
 
 if TYPE_CHECKING:
-    from bwr_twin.results.record import RunResult
+    from bwr_twin.sim.record import RunResult
 
 # The sub-packages whose code decides a run (the replay's own code does not).
 _SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "stockpile",

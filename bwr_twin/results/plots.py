@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure  # no pyplot: no global state, no display backend
 
 from bwr_twin.model.machine import AXES, UNITS, world_to_paper
-from bwr_twin.results.record import RunResult
+from bwr_twin.sim.record import RunResult
 
 _DEG = (1.0, 180 / np.pi, 180 / np.pi)
 
@@ -62,13 +62,14 @@ def save_run_figures(result: RunResult, out_dir: Path) -> list[Path]:
         from bwr_twin.results.reclaim_plots import save_reclaim_figures
 
         paths += save_reclaim_figures(result, out_dir, subtitle)
-    if np.isnan(result.fuzzy_output).all():  # a controller without fuzzy logic
+    fuzzy_output = result.controller_signals.get("fuzzy_output")
+    if fuzzy_output is None:  # a controller without fuzzy logic
         return paths + [_drive_force_figure(result, subtitle, out_dir), _cp_figure(result, subtitle, out_dir)]
     # Fig. 9: the FLC output itself (dimensionless) and the acceleration command it makes.
     fig = Figure(figsize=(10, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     for j, ax in enumerate(axes):
-        ax.plot(result.time, result.fuzzy_output[:, j], "C1-", lw=0.6, label="FLC output")
+        ax.plot(result.time, fuzzy_output[:, j], "C1-", lw=0.6, label="FLC output")
         ax.set_ylabel(f"{AXES[j]} FLC [-]")
         ax.set_ylim(-4.8, 4.8)
         ax.grid(alpha=0.3)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from bwr_twin.results.record import RunResult
+from bwr_twin.sim.record import RunResult
 
 
 def save_reclaim_figures(result: RunResult, out_dir: Path, subtitle: str) -> list[Path]:

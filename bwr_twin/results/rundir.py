@@ -25,55 +25,32 @@ import numpy as np
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 from bwr_twin.results.ownership import check_output, mark
-from bwr_twin.results.record import RunResult
+from bwr_twin.signals import LOOP, RECLAIM
+from bwr_twin.signals import column_name as signal_column
+from bwr_twin.sim.record import RunResult
 
 METRICS_FILE = "metrics.json"
 PILE_FILE = "pile.npz"
 TIMESERIES_FILE = "timeseries.csv"
 SCENE_FILE = "scene.json"
 
-# Unit of each signal kind per axis: travel is linear, slew and luff are angular.
-_SI_UNITS = {
-    "q": ("m", "rad", "rad"),
-    "qd": ("m/s", "rad/s", "rad/s"),
-    "qdd": ("m/s2", "rad/s2", "rad/s2"),
-    "force": ("N", "Nm", "Nm"),
-    "1": ("1", "1", "1"),
-}
-# (column stem, RunResult attribute, unit kind)
-_SIGNALS = (
-    ("q_desired", "q_desired", "q"),
-    ("q_actual", "q", "q"),
-    ("q_measured", "q_measured", "q"),
-    ("qd_desired", "qd_desired", "qd"),
-    ("qd_actual", "qd", "qd"),
-    ("qd_measured", "qd_measured", "qd"),
-    ("qdd_desired", "qdd_desired", "qdd"),
-    ("qdd_actual", "qdd", "qdd"),
-    ("fuzzy_output", "fuzzy_output", "1"),
-    ("acceleration_command", "acceleration_command", "qdd"),
-    ("drive_force_command", "drive_force_command", "force"),
-    ("drive_force", "drive_force", "force"),
-    ("disturbance", "disturbance", "force"),
-)
-
-
-_KIND = {stem: kind for stem, _, kind in _SIGNALS}
+_LOOP_COLUMNS = {signal.column: signal for signal in LOOP}
 
 
 def column_name(stem: str, axis: int) -> str:
-    """The timeseries.csv column of one signal of one axis: column_name("qd_actual", 1) is
-    'slew_qd_actual_rad/s'."""
-    return f"{AXES[axis]}_{stem}_{_SI_UNITS[_KIND[stem]][axis]}"
+    """The timeseries.csv column of one axis of one of the loop's signals: column_name("qd_actual", 1)
+    is 'slew_qd_actual_rad/s'."""
+    return signal_column(_LOOP_COLUMNS[stem], axis)
 
 
 def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
-    """Column names (with units) and values of the recorded time series, at the record period."""
+    """Column names (with units) and values of the recorded time series, at the record period:
+    the loop's signals, the controller's (bwr_twin.signals), the CP, the wind, a stockpile's."""
     names, columns = ["time_s"], [result.time]
-    for stem, attribute, _ in _SIGNALS:
-        values = getattr(result, attribute)
+    for signal in LOOP + result.signal_schema:
+        values = getattr(result, signal.name) if signal in LOOP else result.controller_signals[signal.name]
         for j in range(len(AXES)):
-            names.append(column_name(stem, j))
+            names.append(signal_column(signal, j))
             columns.append(values[:, j])
     for label, cp in (("desired", result.cp_desired), ("actual", result.cp)):
         for c, coordinate in enumerate("xyz"):
@@ -83,11 +60,15 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
     columns.append(result.wind_speed)
     reclaim = result.reclaim
     if reclaim is not None:
-        names += ["reclaim_rate_t/h", "cut_depth_m", "wheel_power_W"]
-        columns += [reclaim.rate, reclaim.cut_depth, reclaim.wheel_power]
-        for c, coordinate in enumerate("xyz"):
-            names.append(f"digging_force_{coordinate}_N")
-            columns.append(reclaim.digging_force[:, c])
+        for name, column, width in RECLAIM:
+            values = getattr(reclaim, name)
+            if width == 1:
+                names.append(column)
+                columns.append(values)
+            else:
+                for c, coordinate in enumerate("xyz"):
+                    names.append(column.format(xyz=coordinate))
+                    columns.append(values[:, c])
     return names, np.column_stack(columns)
 
 

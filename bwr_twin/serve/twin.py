@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from bwr_twin.config.scene import Scene
-from bwr_twin.results.record import RunResult
+from bwr_twin.sim.record import RunResult
 from bwr_twin.sim.lockstep import Lockstep
 
 END_STOP_MARGIN = 1e-3  # share of a joint's range: closer than this to an end stop is "at" it, as the metrics say
@@ -56,7 +56,7 @@ class Twin:
     @property
     def failure(self) -> str | None:
         """Why the run stopped if it diverged (MuJoCo's warning, with the time), else None."""
-        return self.loop.plant.failures.get(0)
+        return self.loop.failures.get(0)
 
     @property
     def periods_left(self) -> int:
@@ -70,9 +70,9 @@ class Twin:
         """Hold the (3,) drive forces (N, N m, N m) over one control period, then read the encoders."""
         self._command[0] = drive_force
         self.loop.advance(self._command)  # inside the server's mujoco_warnings(): MuJoCo prints nothing
-        self.reading["DriveApplied"] = self.loop.plant.drive_force[0].copy()
-        if self.loop.reclaim is not None:
-            self.reading["ReclaimRate"] = float(self.loop.reclaim.rate[0])  # t/h
+        self.reading["DriveApplied"] = self.loop.drive_force[0].copy()
+        if self.loop.reclaim_rate is not None:
+            self.reading["ReclaimRate"] = float(self.loop.reclaim_rate[0])  # t/h
         if not self.loop.done:
             self._measure()
         self.reading["PeriodsLeft"] = self.periods_left
@@ -88,7 +88,7 @@ class Twin:
         loop = self.loop
         k = loop.k
         q_measured, qd_measured = loop.measure()
-        q_true = loop.plant.qpos[0]
+        q_true = loop.q_true[0]
         self.reading.update({
             "SimTime": float(loop.time[k]),
             "PeriodsLeft": self.periods_left,

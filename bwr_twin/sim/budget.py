@@ -15,8 +15,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
+from bwr_twin.signals import csv_columns, recorded_values
 from bwr_twin.stockpile.surface import cell_count
 
 # Measured costs (docs/performance.md), rounded up.
@@ -25,10 +27,9 @@ PERIOD_PER_RUN_S = 8e-6  # s per control period and run: encoders, controller, r
 PERIOD_PER_LOCKSTEP_S = 75e-6  # s per control period of a lockstep, whatever its size: numpy call overheads
 FILES_S = 0.2  # s to write one run directory
 PLOTS_S = 3.0  # s to draw one run's figures
-ROW_BYTES = 600  # of timeseries.csv per recorded row: 47 columns at 10 significant digits
+CSV_VALUE_BYTES = 13  # of timeseries.csv per value: 10 significant digits, sign, exponent, comma
 RUN_FILES_BYTES = 8_000  # metrics.json and scene.json
 PLOTS_BYTES = 700_000  # one run's PNG figures
-RECORD_ROW_BYTES = 46 * 8  # a run's record in memory per row: 46 float64 signals
 SAMPLE_BYTES = 13 * 8  # the path sampled at the control period: time, q, qd, qdd, CP
 PILE_PERIOD_S = 150e-6  # s per control period and run with a stockpile: the cut and its accounting
 PILE_CELL_BYTES = 8  # a run's pile heights in memory, per cell
@@ -61,7 +62,7 @@ class Estimate:
 
 def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots: bool = False) -> Estimate:
     """The cost of simulating `scenes` in locksteps of `chunk` runs on `workers` processes."""
-    steps = periods = rows = cpu = pile_cells_written = 0.0
+    steps = periods = cpu = pile_cells_written = disk = 0.0
     peak_lockstep = 0.0
     for scene in scenes:
         sim = scene.simulation
@@ -70,18 +71,21 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
         cells = cell_count(scene.stockpile, scene.path) if scene.stockpile is not None else 0
+        # What a run records a row (bwr_twin.signals): float64 values in memory, CSV columns on disk.
+        declared = tuple(getattr(controller_class(scene.controller.type), "signals", ()))
+        row_values = recorded_values(declared, reclaim=scene.stockpile is not None)
+        disk += run_rows * csv_columns(declared, reclaim=scene.stockpile is not None) * CSV_VALUE_BYTES
         steps += run_steps
         periods += run_periods
-        rows += run_rows
         pile_cells_written += cells
         cpu += run_steps * STEP_S + run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk)
         cpu += run_periods * PILE_PERIOD_S if cells else 0.0
         cpu += FILES_S + (PLOTS_S if plots else 0.0)
         peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES
-                            + chunk * (run_rows * RECORD_ROW_BYTES + cells * PILE_CELL_BYTES))
+                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES))
     runs = len(scenes)
     parallel = max(1, min(workers, math.ceil(runs / chunk)))
-    disk = rows * ROW_BYTES + runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
+    disk += runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
     disk += pile_cells_written * PILE_FILE_CELL_BYTES
     return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
 

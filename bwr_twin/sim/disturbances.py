@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bwr_twin.config.scene import Scene
+from bwr_twin.sim.parameters import RunParameters
 
 BLOCK = 1000  # control periods drawn at once
 
@@ -66,17 +66,9 @@ class HeldNoise:
 class Disturbances:
     """The disturbance forces on the joints (N, N m) and the wind gusts (m/s) of every run."""
 
-    def __init__(self, scenes: Sequence[Scene], period: float):
-        streams = [np.random.SeedSequence(s.simulation.seed).spawn(2) for s in scenes]
-        self.forces = HeldNoise(
-            [np.random.default_rng(force) for force, _ in streams],
-            np.array([s.disturbance.amplitude for s in scenes]),
-            np.array([s.disturbance.hold_time for s in scenes]),
-            period,
-        )
-        self.gusts = HeldNoise(
-            [np.random.default_rng(gust) for _, gust in streams],
-            np.array([s.plant.gust_amplitude for s in scenes]),
-            np.array([s.plant.gust_hold_time for s in scenes]),
-            period,
-        )
+    def __init__(self, parameters: RunParameters, period: float):
+        streams = [np.random.SeedSequence(int(seed)).spawn(2) for seed in parameters.seed]
+        self.forces = HeldNoise([np.random.default_rng(force) for force, _ in streams],
+                                parameters.disturbance_amplitude, parameters.disturbance_hold, period)
+        self.gusts = HeldNoise([np.random.default_rng(gust) for _, gust in streams],
+                               parameters.gust_amplitude, parameters.gust_hold, period)

@@ -7,38 +7,39 @@ a backward difference through a first-order low-pass of the scene's time constan
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
-from bwr_twin.config.scene import EncoderSection
+from bwr_twin.sim.parameters import RunParameters
 
 
 class Encoders:
     """Measures (runs, 3) joint states; holds the velocity estimate's filter state."""
 
-    def __init__(self, settings: Sequence[EncoderSection], period: float, q0: np.ndarray):
-        """`settings` one per run, `period` the control period in s, `q0` the (3,) or (runs, 3)
-        joint values the runs start at (m, rad, rad)."""
-        runs = len(settings)
-        self._resolution = np.array([s.resolution for s in settings])
-        self._estimate = np.array([s.velocity_source == "encoder" for s in settings])[:, None]
+    def __init__(self, parameters: RunParameters, period: float, q0: np.ndarray):
+        """`period` the control period in s, `q0` the (3,) or (runs, 3) joint values the runs
+        start at (m, rad, rad)."""
+        self._resolution = parameters.encoder_resolution
+        self._estimate = parameters.velocity_estimated[:, None]
         self._any_estimate = bool(self._estimate.any())
-        self._filter_gain = np.array([period / (s.velocity_filter + period) for s in settings])[:, None]
+        self._filter_gain = (period / (parameters.velocity_filter + period))[:, None]
         self._period = period
-        self._q_previous = self.quantise(np.broadcast_to(q0, (runs, 3)))
-        self._qd_estimate = np.zeros((runs, 3))
+        self._q_previous = self.quantise(np.broadcast_to(q0, (parameters.runs, 3)))
+        self._qd_estimate = np.zeros((parameters.runs, 3))
 
-    def quantise(self, q: np.ndarray) -> np.ndarray:
+    def quantise(self, q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Positions rounded to the encoder resolution, (runs, 3)."""
-        return np.round(q / self._resolution) * self._resolution
+        out = np.divide(q, self._resolution, out=out)
+        np.round(out, out=out)
+        return np.multiply(out, self._resolution, out=out)
 
-    def measure(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured positions and velocities from the true (runs, 3) joint state; call once a period."""
-        q_measured = self.quantise(q)
+    def measure(self, q: np.ndarray, qd: np.ndarray, q_measured: np.ndarray, qd_measured: np.ndarray) -> None:
+        """Write the measured positions and velocities of the true (runs, 3) joint state into
+        `q_measured` and `qd_measured`; call once a period."""
+        self.quantise(q, out=q_measured)
         if not self._any_estimate:
-            return q_measured, qd
+            np.copyto(qd_measured, qd)
+            return
         difference = (q_measured - self._q_previous) / self._period
         self._qd_estimate += (difference - self._qd_estimate) * self._filter_gain
-        self._q_previous = q_measured
-        return q_measured, np.where(self._estimate, self._qd_estimate, qd)
+        np.copyto(self._q_previous, q_measured)
+        np.copyto(qd_measured, np.where(self._estimate, self._qd_estimate, qd))

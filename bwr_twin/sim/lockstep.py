@@ -1,38 +1,39 @@
-"""The closed loop for many runs at once: trajectory -> encoders -> controller -> plant, one
-control period at a time, every signal a (runs, 3) array.
+"""The closed loop for many runs at once, one control period at a time: encoders -> reference
+-> controller -> plant, every signal a (runs, 3) array.
 
 A lockstep is a group of runs of one machine, path, controller (and rule base) and timing; what may differ
 between its runs (seeds, gains, input scales, encoders, disturbances, friction loss, wind) is
-per-run data. `lockstep_key` says which runs may share a lockstep. A single run is a lockstep of
-one: `simulate(scene)` is `simulate_lockstep([scene])[0]`, and a run's result does not depend
-on which runs share its lockstep.
+per-run data (`RunParameters`). `lockstep_key` says which runs may share a lockstep. A single
+run is a lockstep of one: `simulate(scene)` is `simulate_lockstep([scene])[0]`, and a run's
+result does not depend on which runs share its lockstep.
 
-`Lockstep` is the loop without its controller, for whoever drives the drives: the scene's
-controller (`simulate_lockstep`), a learning agent (`bwr_twin.gym`) or a PLC over OPC UA
-(`bwr_twin.serve`).
+`Lockstep` only steps: whoever drives the drives (the scene's controller in `simulate_lockstep`,
+a learning agent in `bwr_twin.gym`, a PLC over OPC UA in `bwr_twin.serve`) calls `measure()`,
+reads `reference_now()` and calls `advance(command)`, and sees the machine only through
+read-only views. Each period's raw signals go into the observer's rows
+(`bwr_twin.sim.observer`), which reduces them into metrics and records a block at a time.
 """
 
 from __future__ import annotations
 
 import os
+import types
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
-from bwr_twin.control.interface import ControllerContext, shared_settings
-from bwr_twin.control.rate import RateSignals, rate_control_class
-from bwr_twin.control.registry import controller_class
-from bwr_twin.errors import BwrError, EnvelopeError, SimulationError, UnreachableError
+from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
+from bwr_twin.errors import BwrError, SimulationError
 from bwr_twin.model.machine import Machine
-from bwr_twin.planning.bench import plan_scene
-from bwr_twin.planning.follower import BenchReference, PathReference, Phase
-from bwr_twin.planning.trajectory import Trajectory
-from bwr_twin.results.metrics import OnlineMetrics
-from bwr_twin.results.record import Recorder, RunResult
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
+from bwr_twin.sim.observer import Observer
+from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
+from bwr_twin.sim.record import ReclaimRecord, RunResult
+from bwr_twin.sim.tracking import BenchTracking, PathTracking
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.surface import build_surface
 
@@ -77,16 +78,26 @@ def simulate(scene: Scene, *, progress: Progress | None = None, nthread: int = 0
     return result
 
 
-def simulate_grouped(scenes: Sequence[Scene], *, nthread: int = 0) -> list[RunResult | SimulationError]:
+def simulate_grouped(scenes: Sequence[Scene], *, nthread: int = 0,
+                     progress: Progress | None = None) -> list[RunResult | SimulationError]:
     """Run scenes in as few locksteps as their `lockstep_key`s allow (seeds of a path scene
-    together, bench reclaims one by one); results in the scenes' order."""
+    together, bench reclaims one by one); results in the scenes' order. `progress(done, total)`
+    hears the simulated seconds of the locksteps so far, out of a total that counts the ones
+    left as long as the current one."""
     groups: dict[tuple, list[int]] = {}
     for i, scene in enumerate(scenes):
         groups.setdefault(lockstep_key(scene), []).append(i)
     results: list = [None] * len(scenes)
-    for members in groups.values():
-        for i, result in zip(members, simulate_lockstep([scenes[i] for i in members], nthread=nthread)):
+    done = 0.0
+    for number, members in enumerate(groups.values()):
+        heard = None
+        if progress is not None:
+            def heard(t: float, total: float, before: float = done, left: int = len(groups) - 1 - number) -> None:
+                progress(before + t, before + total * (1 + left))  # the locksteps left take as long
+        loop_results = simulate_lockstep([scenes[i] for i in members], nthread=nthread, progress=heard)
+        for i, result in zip(members, loop_results):
             results[i] = result
+        done += max((r.metrics["run"]["duration"] for r in loop_results if isinstance(r, RunResult)), default=0.0)
     return results
 
 
@@ -104,13 +115,13 @@ def simulate_lockstep(
     controller = controller_class(scenes[0].controller.type)(
         loop.controller_context(), [s.controller.settings for s in scenes]
     )
+    loop.record_controller(controller)
+    measure, reference_now, advance, compute = loop.measure, loop.reference_now, loop.advance, controller.compute
     with mujoco_warnings():
         while not loop.done:
-            q_measured, qd_measured = loop.measure()
-            q_ref, qd_ref, qdd_ref = loop.reference_now()
-            command = controller.compute(q_measured, qd_measured, q_ref, qd_ref, qdd_ref, loop.alive)
-            loop.advance(command, fuzzy_output=controller.fuzzy_output,
-                         acceleration_command=controller.acceleration_command)
+            q_measured, qd_measured = measure()
+            q_ref, qd_ref, qdd_ref = reference_now()
+            advance(compute(q_measured, qd_measured, q_ref, qd_ref, qdd_ref, loop.alive))
             if progress is not None and loop.k % HEALTH_CHECK_EVERY == 0:
                 progress(loop.k * loop.period, loop.duration)
     return loop.results()
@@ -124,74 +135,63 @@ class Lockstep:
     and `advance(command)` holds the drive forces for the period. After the last period
     (`done`), `results()` gives each run's result.
 
-    The reference is a via-point path sampled in advance, the same for every run, or a bench
-    reclaim (scene [reclaim]) that each run follows on its own as its rate control trims the
-    slew speed; such a lockstep ends when every run has finished its plan.
-
     Attributes:
         machine: the plant's machine; `belief_machine` the controller's.
-        reference: the runs' reference (bwr_twin.planning.follower).
-        trajectory, q_desired, qd_desired, qdd_desired: a path scene's path and its (samples, 3)
-            rows; `plan` and `rate_control` instead for a bench reclaim.
+        tracking: what the runs follow (bwr_twin.sim.tracking): a path shared by every run, or a
+            bench plan each run follows on its own.
         time: the (samples,) times of the control periods (s); `samples` their count (for a
             bench reclaim, the most it may take until it ends).
         k: the control period about to be measured and advanced.
-        plant: the MuJoCo batch's owner (the true state: `plant.qpos`, `plant.qvel`).
+        q_true, qd_true, drive_force: read-only (runs, 3) views of the true joint state and of the
+            forces the drives applied in the last period; `failures` maps a run that stopped to why.
+        path: a path scene's read-only (samples, 3) reference rows, or None.
         reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
     """
 
-    def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None):
+    def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None,
+                 observe: bool = True):
         """Raises BwrError if the path, a model or the stockpile is bad. `pile_frame_period` (s):
-        keep the pile as it is dug that often, for a replay."""
+        keep the pile as it is dug that often, for a replay. `observe=False`: no metrics and no
+        record (a driver that keeps its own, such as a learning agent's environment)."""
         if len({lockstep_key(s) for s in scenes}) != 1:
             raise ValueError("the scenes of a lockstep must share their lockstep_key")
         self.scenes = list(scenes)
         scene = scenes[0]
+        sim = scene.simulation
+        parameters = RunParameters.of(scenes)
         surface = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
         self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface)
         self.belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
         self.runs = runs = len(scenes)
         self.nthread = min(nthread or os.cpu_count() or 1, runs)
-        self.period = period = scene.simulation.control_period
-        self.plan = None
-        self.rate_control = None
-        if scene.reclaim is None:
-            try:
-                trajectory = Trajectory.plan(scene.trajectory, machine)
-            except (UnreachableError, EnvelopeError) as exc:
-                raise type(exc)(f"{scene.path}: {exc}") from None
-            self.reference = PathReference(trajectory, period)
-            self.trajectory = trajectory
-            self.q_desired = self.reference.q_desired  # the path's rows, the same for every run
-            self.qd_desired, self.qdd_desired = self.reference.qd_desired, self.reference.qdd_desired
-        else:
-            self.plan = plan_scene(scene)
-            self.reference = BenchReference(self.plan, runs, period, machine.fk)
-            control = scene.reclaim.rate_control
-            self.rate_control = rate_control_class(control.type)(
-                control, np.array([s.reclaim.target_rate for s in scenes]), period, self.scenes)
-        self.samples = samples = self.reference.samples  # for a bench plan, the most it may take
-        self.time = self.reference.time
+        self.period = period = sim.control_period
+        self.tracking = tracking = (BenchTracking(scenes, machine, period) if scene.reclaim is not None
+                                    else PathTracking(scene, machine, period))
+        self.samples, self.time = tracking.samples, tracking.time
 
-        self.plant = Plant(machine, scenes, q0=self.reference.start, nthread=self.nthread)
-        self._encoders = Encoders([s.encoders for s in scenes], period, self.reference.start)
-        self._disturbances = Disturbances(scenes, period)
-        self._recorder = Recorder(samples, round(scene.simulation.record_period / period), runs)
-        self._metrics = OnlineMetrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
+        self._plant = plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep,
+                                    control_period=period, nthread=self.nthread)
+        self._encoders = Encoders(parameters, period, tracking.start)
+        self._disturbances = Disturbances(parameters, period)
         self.reclaim = None
         if surface is not None:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
-            self.reclaim = Reclaim(scenes, machine, surface, period, len(self._recorder.samples), frame_every,
-                                   plan=self.plan)
-        self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
-        self._unrecorded = np.full((runs, 3), np.nan)  # what a controller does not compute
-        self._errors_and_forces = np.zeros((runs, 12))
-        self._columns = {name: self._errors_and_forces[:, getattr(OnlineMetrics, name)]
-                         for name in ("POSITION", "VELOCITY", "ACCELERATION", "FORCE")}
-        self._qdd, self._qd_mean = np.zeros((runs, 3)), np.zeros((runs, 3))
-        self._q, self._qd, self._q_last, self._qd_last = (np.zeros((runs, 3)) for _ in range(4))
-        self._inputs: tuple = ()
-        self._measured: tuple = ()
+            self.reclaim = Reclaim(scenes, machine, surface, period, frame_every, plan=tracking.plan)
+        self._observe = observe
+        self._observer = observer = Observer(
+            runs, self.samples, period, round(sim.record_period / period), machine,
+            path=tracking.rows if tracking.shared else None, wind_mean=parameters.wind_speed,
+            reclaim=self.reclaim is not None)
+        observer.q[0], observer.qd[0] = plant.qpos, plant.qvel
+        self._controller: tuple = (None, ())  # the controller, and the names of the signals it declares
+        # What drivers may read: views that cannot be written.
+        self.q_true, self.qd_true, self.drive_force = (_read_only(a) for a in (plant.qpos, plant.qvel,
+                                                                               plant.drive_force))
+        self.failures = types.MappingProxyType(plant.failures)  # run index -> why it stopped
+        # A path scene's (samples, 3) reference positions, velocities and accelerations, the same
+        # for every run; None for a bench reclaim.
+        self.path = tuple(_read_only(rows) for rows in tracking.rows) if tracking.shared else None
+        self._measured = (_read_only(observer.q_measured), _read_only(observer.qd_measured))
         self.k = 0
 
     @property
@@ -203,125 +203,102 @@ class Lockstep:
         """s from the first control period to the last (for a bench reclaim, the most it may take)."""
         return (self.samples - 1) * self.period
 
-    def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)."""
-        r = self.reference
-        return r.q, r.qd, r.qdd
-
     @property
     def alive(self) -> np.ndarray | None:
         """Indices of the runs still stepped; None: all."""
-        return self.plant.alive
+        return self._plant.alive
+
+    @property
+    def reclaim_rate(self) -> np.ndarray | None:
+        """(runs,) t/h on the belt this period (read-only), or None without a stockpile."""
+        return None if self.reclaim is None else _read_only(self.reclaim.rate)
+
+    def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)."""
+        return self.tracking.now()
 
     def controller_context(self) -> ControllerContext:
         """What a controller of these runs may know: the belief machine, never the plant."""
         return ControllerContext(self.runs, self.period, self.belief_machine, self.nthread)
 
+    def record_controller(self, controller: Controller) -> None:
+        """Record the signals `controller` declares (`Controller.signals`); before the first period."""
+        signals = tuple(getattr(controller, "signals", ()))
+        self._observer.watch_controller(signals, self.samples)
+        self._controller = (controller, tuple((s.name, self._observer.controller[s.name]) for s in signals))
+
     def measure(self) -> tuple[np.ndarray, np.ndarray]:
-        """The encoders' (runs, 3) positions and velocities at the start of period k; once a period."""
-        # This period's buffers; the last period's kept for its metrics.
-        self._q, self._q_last, self._qd, self._qd_last = self._q_last, self._q, self._qd_last, self._qd
-        np.copyto(self._q, self.plant.qpos)
-        np.copyto(self._qd, self.plant.qvel)
-        if 0 < self.k < self.samples:  # the last period's sample is finished by advance()
-            self._finish(self.k - 1, self._q_last, self._qd_last, self._qd)
-        self._measured = self._encoders.measure(self._q, self._qd)
-        return self._measured
-
-    def advance(self, command: np.ndarray, *, fuzzy_output: np.ndarray | None = None,
-                acceleration_command: np.ndarray | None = None) -> None:
-        """Hold the (runs, 3) drive forces (N, N m) over period k, with the period's disturbances.
-
-        `fuzzy_output` and `acceleration_command`, if the controller has them, are recorded.
-        """
-        k = self.k
+        """The encoders' (runs, 3) positions and velocities at the start of period k (read-only); once a period."""
+        observer, row = self._observer, self._observer.row
+        self._encoders.measure(observer.q[row], observer.qd[row], observer.q_measured[row],
+                               observer.qd_measured[row])
         q_measured, qd_measured = self._measured
-        reference = self.reference
-        disturbance = self._disturbances.forces.sample(k)
-        phase = reference.phase() if self.plan is not None else None
-        load = self.reclaim.step(k, self._q, self.plant.alive, phase) if self.reclaim is not None else None
-        if load is not None:
-            disturbance = disturbance + load
+        return q_measured[row], qd_measured[row]
+
+    def advance(self, command: np.ndarray) -> None:
+        """Hold the (runs, 3) drive forces (N, N m) over period k, with the period's disturbances."""
+        k, observer, plant, tracking = self.k, self._observer, self._plant, self.tracking
+        row = observer.row
+        np.copyto(observer.command[row], command)
+        disturbance = observer.disturbance[row]
+        np.copyto(disturbance, self._disturbances.forces.sample(k))
+        phase = tracking.phase()
+        reclaim = self.reclaim
+        if reclaim is not None:
+            load = reclaim.step(k, observer.q[row], plant.alive, phase)
+            if load is not None:
+                disturbance += load
+            for name, value in zip(observer.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
+                observer.reclaim[name][row] = value
         gust = self._disturbances.gusts.sample(k)
-        self.plant.step(command, disturbance, gust)
-        # A bench reference changes in place: the record keeps this period's.
-        planned = (reference.q, reference.qd, reference.qdd) if self.plan is None else \
-            (reference.q.copy(), reference.qd.copy(), reference.qdd.copy())
-        self._inputs = (q_measured, qd_measured, command, disturbance, gust,
-                        _or(fuzzy_output, self._unrecorded), _or(acceleration_command, self._unrecorded), *planned)
+        observer.gust[row] = gust
+        plant.step(observer.command[row], disturbance, gust)
+        np.copyto(observer.drive_force[row], plant.drive_force)
+        np.copyto(observer.q[row + 1], plant.qpos)
+        np.copyto(observer.qd[row + 1], plant.qvel)
+        if not tracking.shared:  # a per-run reference changes in place: the record keeps this period's
+            for rows, value in zip((observer.q_desired, observer.qd_desired, observer.qdd_desired), tracking.now()):
+                rows[row] = value
+        controller, declared = self._controller
+        for name, rows in declared:
+            rows[row] = getattr(controller, name)
         self.k = k = k + 1
-        if self.plan is not None:
-            self._follow_plan(k, phase)
+        end = tracking.advance(k, reclaim, phase)
+        if end is not None and end < self.samples:
+            self.samples = end
+            self.time = self.time[:end]
+            observer.end_at(end)
+        if self._observe:
+            observer.period_done()
         else:
-            reference.advance()
+            observer.q[0], observer.qd[0] = observer.q[1], observer.qd[1]
         if k % HEALTH_CHECK_EVERY == 0:
-            self.plant.check_health()
+            plant.check_health()
         if k == self.samples:
-            if self.reclaim is not None:
-                self.reclaim.finish(k - 1)
-            self._finish(k - 1, self._q, self._qd, self.plant.qvel)
-            self.plant.check_health()
-
-    def _follow_plan(self, k: int, phase: Phase) -> None:
-        """On along the bench plan to period k: the rate control's trims from what it measured in
-        the period just ended, the stop condition, and the end of the lockstep once every run rests."""
-        reclaim, stop = self.reclaim, self.scenes[0].reclaim.stop
-        trim = self.rate_control.trim(RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting,
-                                                     phase.steady))
-        stopping = None
-        if stop.time is not None and k * self.period >= stop.time - 1e-9:
-            stopping = np.ones(self.runs, dtype=bool)
-        elif stop.tonnes is not None:
-            stopping = reclaim.carried_tonnes() >= stop.tonnes
-        self.reference.advance(trim, stopping)
-        if self.reference.finished.all() and k < self.samples:
-            self.samples = k + 1  # one more period at rest, measured and recorded
-            self.time = self.time[: self.samples]
-            self._recorder.end_at(self.samples)
-
-    def _finish(self, j: int, q: np.ndarray, qd: np.ndarray, qd_next: np.ndarray) -> None:
-        """Sample j's metrics and record, once its period has ended at velocity qd_next."""
-        columns, qdd, period = self._columns, self._qdd, self.period
-        (q_measured, qd_measured, command, disturbance, gust, fuzzy_output, acceleration_command,
-         q_desired, qd_desired, qdd_desired) = self._inputs
-        np.subtract(q_desired, q, out=columns["POSITION"])
-        np.subtract(qd_desired, qd, out=columns["VELOCITY"])
-        np.divide(np.subtract(qd_next, qd, out=qdd), period, out=qdd)  # mean over the period
-        np.subtract(qdd_desired, qdd, out=columns["ACCELERATION"])
-        np.copyto(columns["FORCE"], self.plant.drive_force)
-        np.multiply(np.add(qd, qd_next, out=self._qd_mean), 0.5, out=self._qd_mean)
-        self._metrics.add(j, self._errors_and_forces, command, q, self._qd_mean)
-        row = self._recorder.row(j)
-        if row < 0:
-            return
-        self._metrics.add_cp_error(j, np.linalg.norm(self.machine.fk(q_desired) - self.machine.fk(q), axis=1))
-        signals = self._recorder.signals
-        for name, value in (("q_desired", q_desired), ("q", q), ("q_measured", q_measured),
-                            ("qd_desired", qd_desired), ("qd", qd), ("qd_measured", qd_measured),
-                            ("qdd_desired", qdd_desired), ("qdd", qdd),
-                            ("fuzzy_output", fuzzy_output), ("acceleration_command", acceleration_command),
-                            ("drive_force_command", command), ("drive_force", self.plant.drive_force),
-                            ("disturbance", disturbance)):
-            signals[name][row] = value
-        self._recorder.wind_speed[row] = self._wind_mean + gust
-        if self.reclaim is not None:
-            self.reclaim.record(row)
+            if reclaim is not None:
+                reclaim.finish(k - 1)
+            if self._observe:
+                observer.flush()
+            plant.check_health()
 
     def results(self) -> list[RunResult | SimulationError]:
         """Each run's result, or the SimulationError of a run that diverged; once `done`."""
         if not self.done:
             raise RuntimeError(f"the lockstep is at control period {self.k} of {self.samples}")
+        if not self._observe:
+            raise RuntimeError("this lockstep was built with observe=False: it keeps no results")
+        recorder, metrics = self._observer.recorder, self._observer.metrics
         results: list[RunResult | SimulationError] = []
         for run, scene in enumerate(self.scenes):
-            if run in self.plant.failures:
+            if run in self.failures:
                 results.append(SimulationError(
-                    f"{scene.path}: the simulation diverged ({self.plant.failures[run]}); try smaller gains or timestep"
+                    f"{scene.path}: the simulation diverged ({self.failures[run]}); try smaller gains or timestep"
                 ))
                 continue
-            metrics = self._metrics.result(run, self.time)
+            run_metrics = metrics.result(run, self.time)
             if self.reclaim is not None:
-                metrics["reclaim"] = self.reclaim.metrics(run)
-            metrics["run"] = {
+                run_metrics["reclaim"] = self.reclaim.metrics(run)
+            run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),
                 "controller_mjcf": str(scene.controller_mjcf),
@@ -329,20 +306,18 @@ class Lockstep:
                 "duration": self.duration,
                 "control_period": self.period,
                 "timestep": scene.simulation.timestep,
+                **self.tracking.run_metrics(run),
             }
-            waypoints, names = self.reference.waypoints(run)
-            if self.plan is not None:  # where the run began each segment of its plan, for a replay
-                metrics["run"]["waypoint_times"] = waypoints.times.tolist()
-                metrics["run"]["waypoints"] = waypoints.points.tolist()
-                metrics["run"]["waypoint_names"] = names
-            result = self._recorder.run_result(run, scene=scene, machine=self.machine,
-                                               trajectory=waypoints, time=self.time,
-                                               metrics=metrics)
+            waypoints, _ = self.tracking.waypoints(run)
+            result = recorder.run_result(run, scene=scene, machine=self.machine, trajectory=waypoints,
+                                         time=self.time, metrics=run_metrics)
             if self.reclaim is not None:
-                result.reclaim = self.reclaim.run_record(run, self._recorder.rows)
+                result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
             results.append(result)
         return results
 
 
-def _or(signal: np.ndarray | None, missing: np.ndarray) -> np.ndarray:
-    return missing if signal is None else signal
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view

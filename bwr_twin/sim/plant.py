@@ -11,15 +11,15 @@ disturbance forces enter through `qfrc_applied`.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
 from mujoco.batch import Batch
 from mujoco.batch import SimulationError as BatchError
 
-from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.sim.parameters import RunParameters
 
 STEPS_PER_CALL = 1000  # physics steps of one Batch.step call: under a second even for 128 runs
 
@@ -45,10 +45,10 @@ class Plant:
             a failed run is no longer stepped, the others go on.
     """
 
-    def __init__(self, machine: Machine, scenes: Sequence[Scene], q0: np.ndarray, *, nthread: int = 0):
-        sim = scenes[0].simulation
-        runs = len(scenes)
-        self.batch = batch = Batch(machine.physics_model(sim.timestep), runs, nthread=nthread)
+    def __init__(self, machine: Machine, parameters: RunParameters, q0: np.ndarray, *, timestep: float,
+                 control_period: float, nthread: int = 0):
+        runs = parameters.runs
+        self.batch = batch = Batch(machine.physics_model(timestep), runs, nthread=nthread)
         self.qpos = batch.bind("qpos")
         self.qvel = batch.bind("qvel")
         self._ctrl = batch.bind("ctrl")
@@ -58,24 +58,22 @@ class Plant:
         # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
         self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
         self._gear = machine.model.actuator_gear[ids, 0].copy()
-        substeps = round(sim.control_period / sim.timestep)
+        substeps = round(control_period / timestep)
         # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
         whole, rest = divmod(substeps, STEPS_PER_CALL)
         self._calls = [STEPS_PER_CALL] * whole + ([rest] if rest else [])
 
-        if any(s.plant.frictionloss is not None for s in scenes):
-            frictionloss = batch.expand("dof_frictionloss")
-            for run, scene in enumerate(scenes):
-                if scene.plant.frictionloss is not None:
-                    frictionloss[run] = scene.plant.frictionloss
-        windy = np.array([bool(s.plant.wind_speed or s.plant.gust_amplitude) for s in scenes])
+        given = ~np.isnan(parameters.frictionloss).any(axis=1)
+        if given.any():
+            batch.expand("dof_frictionloss")[given] = parameters.frictionloss[given]
+        windy = parameters.windy
         self._wind = None
         if windy.any():
-            batch.expand("opt.density")[:] = np.where(windy, [s.plant.air_density for s in scenes], 0.0)
+            batch.expand("opt.density")[:] = np.where(windy, parameters.air_density, 0.0)
             self._wind = batch.expand("opt.wind")
-            heading = np.radians([s.plant.wind_direction for s in scenes])
+            heading = parameters.wind_direction
             self._wind_direction = np.stack([np.cos(heading), np.sin(heading), np.zeros(runs)], axis=1)
-            self._wind_mean = np.array([s.plant.wind_speed for s in scenes])
+            self._wind_mean = parameters.wind_speed
 
         self._warning_counts = batch.warning[:, :, 1]  # (runs, warning kinds), live
         self.qpos[:] = q0

@@ -20,8 +20,6 @@ predicted it would), the over-cut beyond the planned cut, and the tonnes of each
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-
 import numpy as np
 
 from bwr_twin.config.scene import Scene
@@ -38,26 +36,11 @@ DUG_RATE_FLOOR = 1e-6  # m^3/s: below it the lagged dug rate is no load at all (
 RATE_BAND = 0.1  # of the target: the band the steady rate is counted within
 
 
-@dataclass
-class ReclaimRecord:
-    """One run's reclaim signals at the record period, and its pile."""
-
-    rate: np.ndarray  # (n,) t/h carried away
-    cut_depth: np.ndarray  # (n,) m
-    digging_force: np.ndarray  # (n, 3) N on the wheel, world frame
-    wheel_power: np.ndarray  # (n,) W
-    x: np.ndarray  # grid lines, m
-    y: np.ndarray
-    z_start: np.ndarray  # (ny, nx) m
-    z_end: np.ndarray
-    history: PileHistory | None  # the pile as it was dug, if kept
-
-
 class Reclaim:
     """Owns the piles of a lockstep's runs (through its Cutter) and their reclaim accounting."""
 
     def __init__(self, scenes: Sequence[Scene], machine: Machine, surface: Surface, period: float,
-                 record_rows: int, frame_every: int | None = None, plan: BenchPlan | None = None):
+                 frame_every: int | None = None, plan: BenchPlan | None = None):
         """`surface`: the scenes' pile; `frame_every`: keep the cells changed every that many
         control periods, for a replay; `plan`: the bench plan the runs follow, if any. Raises
         SceneError if the machine cannot dig the pile."""
@@ -91,8 +74,6 @@ class Reclaim:
         self.carrying_periods = np.zeros(runs, dtype=np.int64)
         self.rate_sum, self.rate_square_sum = np.zeros(runs), np.zeros(runs)  # t/h, over carrying periods
         self.rate_max, self.depth_max, self.force_max = np.zeros(runs), np.zeros(runs), np.zeros(runs)
-        self.recorded = {name: np.zeros((record_rows, runs)) for name in ("rate", "depth", "power")}
-        self.recorded["force"] = np.zeros((record_rows, runs, 3))
         self._frame_every = frame_every
         self._frames: list[list] = [[] for _ in range(runs)]
         self._framed = self.cutter.heights.copy() if frame_every else None
@@ -244,12 +225,6 @@ class Reclaim:
             rate = self._next_rate if self._next_rate is not None else self.rate
             self._add_hold(rate, -rate * beyond * self.period / (self.density * (SECONDS_PER_HOUR / KG_PER_T)), -beyond)
 
-    def record(self, row: int) -> None:
-        self.recorded["rate"][row] = self.rate
-        self.recorded["depth"][row] = self.depth
-        self.recorded["power"][row] = self.power
-        self.recorded["force"][row] = self.force
-
     def _keep_frame(self, k: int) -> None:
         for run in range(len(self._frames)):
             changed = np.flatnonzero(self.cutter.heights[run] != self._framed[run])
@@ -304,15 +279,10 @@ class Reclaim:
             "bench_planned_t": self.plan.bench_tonnes(),
         }
 
-    def run_record(self, run: int, rows: int) -> ReclaimRecord:
-        """Run `run`'s signals over the first `rows` record rows, and its pile."""
-        return ReclaimRecord(
-            rate=self.recorded["rate"][:rows, run].copy(),
-            cut_depth=self.recorded["depth"][:rows, run].copy(),
-            digging_force=self.recorded["force"][:rows, run].copy(),
-            wheel_power=self.recorded["power"][:rows, run].copy(),
-            x=self.surface.x, y=self.surface.y, z_start=self.surface.z,
-            z_end=self.cutter.heights[run].copy(),
+    def pile(self, run: int) -> dict:
+        """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept)."""
+        return dict(
+            x=self.surface.x, y=self.surface.y, z_start=self.surface.z, z_end=self.cutter.heights[run].copy(),
             history=PileHistory.from_frames(self.surface.x, self.surface.y, self.surface.z, self._frames[run])
             if self._framed is not None else None,
         )

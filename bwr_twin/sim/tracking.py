@@ -1,0 +1,129 @@
+"""What the runs of a lockstep follow: one protocol, two kinds.
+
+`PathTracking` is a scene's via-point path, sampled once at the control period and the same for
+every run. `BenchTracking` is a bench reclaim (scene [reclaim]) that each run follows on its own:
+its rate control trims the slew speed from what the run's reclaim measured in the period just
+ended, its stop condition ends the plan, and the lockstep ends once every run rests.
+
+Both give the current period's reference (`now`), where each run stands in its plan (`phase`),
+move on a period (`advance`) and say where each run began each segment (`waypoints`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bwr_twin.config.plugins import rate_control_class
+from bwr_twin.config.scene import Scene
+from bwr_twin.control.rate import RateSignals, WheelCalibration
+from bwr_twin.errors import EnvelopeError, UnreachableError
+from bwr_twin.model.machine import Machine
+from bwr_twin.planning.bench import plan_scene
+from bwr_twin.planning.follower import BenchReference, PathReference, Phase
+from bwr_twin.planning.trajectory import Trajectory
+
+
+class PathTracking:
+    """The via-point path of a scene: (3,) rows of period k, shared by every run.
+
+    Attributes:
+        rows: the path's (samples, 3) positions, velocities and accelerations.
+        samples, time: the control periods and their (samples,) times (s).
+        start: (3,) the joint values the runs start at.
+    """
+
+    shared = True
+    plan = None
+
+    def __init__(self, scene: Scene, machine: Machine, period: float):
+        """Raises UnreachableError or EnvelopeError, naming the scene, for a path the machine cannot follow."""
+        try:
+            trajectory = Trajectory.plan(scene.trajectory, machine)
+        except (UnreachableError, EnvelopeError) as exc:
+            raise type(exc)(f"{scene.path}: {exc}") from None
+        self._reference = reference = PathReference(trajectory, period)
+        self.trajectory = trajectory
+        self.rows = (reference.q_desired, reference.qd_desired, reference.qdd_desired)
+        self.samples, self.time, self.start = reference.samples, reference.time, reference.start
+
+    def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        r = self._reference
+        return r.q, r.qd, r.qdd
+
+    def phase(self) -> None:
+        return None
+
+    def advance(self, k: int, reclaim, phase: None) -> int | None:
+        """On to period k; a path never ends early (None)."""
+        self._reference.advance()
+        return None
+
+    def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
+        return self._reference.waypoints(run)
+
+    def run_metrics(self, run: int) -> dict:
+        return {}
+
+
+class BenchTracking:
+    """A bench plan, followed by every run on its own: (runs, 3) references.
+
+    Attributes:
+        plan: the bench plan (bwr_twin.planning.plan.BenchPlan).
+        samples, time: the most control periods the plan may take, and their times (s).
+        start: (3,) the plan's start.
+    """
+
+    shared = False
+
+    def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float):
+        """Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
+        scene = scenes[0]
+        self.plan = plan_scene(scene)
+        self._reference = reference = BenchReference(self.plan, len(scenes), period, machine.fk)
+        self.samples, self.time, self.start = reference.samples, reference.time, reference.start
+        self._period = period
+        self._stop = scene.reclaim.stop
+        control = scene.reclaim.rate_control
+        digging = [s.digging for s in scenes]
+        wheel = WheelCalibration(
+            idle_power=np.array([d.idle_power if d else np.nan for d in digging]),
+            cutting_energy=np.array([d.cutting_energy if d else np.nan for d in digging]),
+            bulk_density=np.array([s.stockpile.bulk_density for s in scenes]),
+        )
+        targets = np.array([s.reclaim.target_rate for s in scenes])
+        self._rate_control = rate_control_class(control.type)(control, targets, period, wheel)
+
+    def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        r = self._reference
+        return r.q, r.qd, r.qdd
+
+    def phase(self) -> Phase:
+        return self._reference.phase()
+
+    def advance(self, k: int, reclaim, phase: Phase) -> int | None:
+        """On to period k from the period just ended, where the runs stood at `phase`: the rate
+        control's trims from what each run's reclaim measured in it, the stop condition; once
+        every run rests, the periods the lockstep takes in all (one more at rest, measured and
+        recorded), else None."""
+        reference = self._reference
+        trim = self._rate_control.trim(RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting,
+                                                   phase.steady))
+        stop, stopping = self._stop, None
+        if stop.time is not None and k * self._period >= stop.time - 1e-9:
+            stopping = np.ones(len(trim), dtype=bool)
+        elif stop.tonnes is not None:
+            stopping = reclaim.carried_tonnes() >= stop.tonnes
+        reference.advance(trim, stopping)
+        return k + 1 if reference.finished.all() else None
+
+    def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
+        return self._reference.waypoints(run)
+
+    def run_metrics(self, run: int) -> dict:
+        """Where the run began each segment of its plan, for a replay."""
+        waypoints, names = self._reference.waypoints(run)
+        return {"waypoint_times": waypoints.times.tolist(), "waypoints": waypoints.points.tolist(),
+                "waypoint_names": names}
