@@ -8,12 +8,17 @@ a whole column of cells in one period and the rate would be a train of spikes a 
 flanks a few cells wide, cells are lowered a little each period, and the same material is cut,
 a little earlier. The heights only ever fall, so the volume the pile loses is exactly the sum of
 the volumes cut.
+
+The cut runs every control period for every run, so it is compiled (numba, cached next to this
+module): one call visits, for each run, only the cells near its wheel.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from bwr_twin.model.machine import Wheel
@@ -40,103 +45,106 @@ class Cutter:
         self.surface = surface
         self.wheel = wheel
         self.heights = np.repeat(surface.z[None], runs, axis=0)
-        self._top = float(surface.z.max())  # the heights only fall: nothing above this is ever cut
-        self._x0, self._y0, self._h = float(surface.x[0]), float(surface.y[0]), surface.spacing
-        self._nx, self._ny = len(surface.x), len(surface.y)
-        self._near: list[tuple | None] = [None] * runs  # per run: the cells near its wheel, and where it was
+        self._x = np.ascontiguousarray(surface.x, dtype=float)
+        self._y = np.ascontiguousarray(surface.y, dtype=float)
+        top = float(surface.z.max())  # the heights only fall: nothing above this is ever cut
+        self._shape = np.array([wheel.radius, wheel.radius**2, wheel.width / 2, SIDE_SLOPE, top, CELL_MARGIN,
+                                float(surface.x[0]), float(surface.y[0]), surface.spacing, surface.cell_area,
+                                YARD_FLOOR])
+        # Per run, where its wheel was when the cells near it were gathered (NaN: never).
+        self._near = np.full((runs, _NEAR), np.nan)
 
     def cut(self, cp: np.ndarray, slew: np.ndarray, runs: np.ndarray | None = None) -> Cut:
         """Lower every run's pile to its wheel's envelope, the wheel centred at cp (runs, 3) with
         the boom at `slew` (runs,) rad; only the `runs` given (None: all)."""
         count = len(self.heights)
         out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count))
-        radius, half_width = self.wheel.radius, self.wheel.width / 2
-        for run in range(count) if runs is None else runs:
-            cx, cy, cz = cp[run]
-            if cz - radius >= self._top:
-                continue
-            cells = self._cells_near(run, cx, cy, slew[run], half_width + (self._top - cz + radius) / SIDE_SLOPE)
-            if cells is None:
-                continue
-            flat, x, y = cells
-            cos, sin = np.cos(slew[run]), np.sin(slew[run])
-            dx, dy = x - cx, y - cy
-            along = dx * cos + dy * sin
-            across = dy * cos - dx * sin
-            envelope = np.abs(across)
-            envelope -= half_width
-            np.maximum(envelope, 0.0, out=envelope)
-            envelope *= SIDE_SLOPE
-            span = radius**2 - along * along
-            outside = span < 0.0  # beyond the wheel's rim along the boom: never cut
-            np.maximum(span, 0.0, out=span)
-            envelope -= np.sqrt(span, out=span)
-            envelope += cz
-            np.maximum(envelope, YARD_FLOOR, out=envelope)  # a wheel that dips below the pile cuts no ground
-            envelope[outside] = np.inf
-            z = self.heights[run].reshape(-1)  # a view: the run's heights, row by row
-            old = z[flat]
-            cutting = np.flatnonzero(old > envelope)
-            if not cutting.size:
-                continue
-            flat, along, across, old, new = flat[cutting], along[cutting], across[cutting], old[cutting], envelope[cutting]
-            z[flat] = new
-            removed = old - new
-            weight = removed.sum()
-            out.volume[run] = weight * self.surface.cell_area
-            out.centroid[run] = (
-                np.dot(removed, x[cutting]) / weight,
-                np.dot(removed, y[cutting]) / weight,
-                np.dot(removed, old + new) / (2 * weight),
-            )
-            drop = np.maximum(cz - old, 0.0)
-            rim = np.sqrt(np.maximum(radius**2 - drop * drop, 0.0))
-            out.depth[run] = max(float(np.max(rim - np.abs(along))), 0.0)
-            out.side[run] = np.sign(np.dot(removed, across))
+        order = np.arange(count) if runs is None else np.asarray(runs, dtype=np.int64)
+        _cut(self.heights, self._x, self._y, np.ascontiguousarray(cp, dtype=float),
+             np.ascontiguousarray(slew, dtype=float), order, self._near, self._shape,
+             out.volume, out.depth, out.centroid, out.side)
         return out
 
-    def _cells_near(self, run: int, cx: float, cy: float, slew: float, half_width: float):
-        """The cells that may lie under run's wheel: (flat indices, x, y of their centres), or
-        None. They are gathered with a margin of CELL_MARGIN and kept while the wheel moves
-        less than that margin, so most periods only compute their distances to the wheel."""
-        kept = self._near[run]
-        if kept is not None:
-            x0, y0, slew0, width0, cells = kept
-            moved = abs(cx - x0) + abs(cy - y0) + self.wheel.radius * abs(slew - slew0)
-            if moved < CELL_MARGIN and half_width <= width0:
-                return cells
-        width = half_width + CELL_MARGIN
-        flat = self._cells_under(np.array([cx, cy]), slew, width, self.wheel.radius + CELL_MARGIN)
-        cells = None if flat is None else (flat, self.surface.x[flat % self._nx], self.surface.y[flat // self._nx])
-        self._near[run] = (cx, cy, slew, width, cells)
-        return cells
 
-    def _cells_under(self, cp: np.ndarray, slew: float, half_width: float, radius: float) -> np.ndarray | None:
-        """Flat indices of the grid cells whose centres lie within `half_width` of the wheel's
-        plane and within `radius` of its centre along the boom, or None. Row by row, such cells
-        form one interval of columns, so only they are visited."""
-        h = self._h
-        cos, sin = float(np.cos(slew)), float(np.sin(slew))
-        extent = radius * abs(sin) + half_width * abs(cos)  # the rectangle's half-height in Y
-        iy0 = max(int(np.ceil((cp[1] - extent - self._y0) / h)), 0)
-        iy1 = min(int(np.floor((cp[1] + extent - self._y0) / h)), self._ny - 1)
-        if iy0 > iy1:
-            return None
-        dy = self.surface.y[iy0 : iy1 + 1] - cp[1]
-        low, high = -np.inf, np.inf
-        # across = dy cos - dx sin and along = dx cos + dy sin: each is |centre - dx slope| <= half.
-        for centre, half, slope in ((dy * cos, half_width, sin), (-dy * sin, radius, cos)):
-            if abs(slope) < 1e-12:  # dx plays no part: the whole row, or none of it
-                low = np.where(np.abs(centre) > half, np.inf, low)
-                continue
-            a, b = (centre - half) / slope, (centre + half) / slope
-            low, high = np.maximum(low, np.minimum(a, b)), np.minimum(high, np.maximum(a, b))
-        first = np.maximum(np.ceil((cp[0] - self._x0 + low) / h), 0.0)
-        last = np.minimum(np.floor((cp[0] - self._x0 + high) / h), self._nx - 1.0)
-        counts = np.maximum(last - first + 1.0, 0.0).astype(np.int64)
-        total = int(counts.sum())
-        if total == 0:
-            return None
-        row = np.repeat(np.arange(iy0, iy1 + 1), counts)
-        col = np.repeat(first.astype(np.int64) - np.cumsum(counts) + counts, counts) + np.arange(total)
-        return row * self._nx + col
+# The columns of Cutter._near: the gathering's CP x and y, slew, half-width, and the slew's cos, sin.
+_NEAR = 6
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid, side):
+    """Cutter.cut for the runs in `order`: lowers `heights` and writes the cut's outputs."""
+    radius, radius2, half_width, side_slope, top, margin = shape[0], shape[1], shape[2], shape[3], shape[4], shape[5]
+    x0, y0, h, cell_area, floor = shape[6], shape[7], shape[8], shape[9], shape[10]
+    ny, nx = heights.shape[1], heights.shape[2]
+    for run in order:
+        cx, cy, cz = cp[run, 0], cp[run, 1], cp[run, 2]
+        if cz - radius >= top:
+            continue
+        slew = slews[run]
+        # The cells near the wheel: those within a rectangle gathered with a margin, kept while
+        # the wheel moves less than the margin, wide enough for the flanks to rise above the top.
+        reach = half_width + (top - cz + radius) / side_slope
+        g = near[run]
+        moved = abs(cx - g[0]) + abs(cy - g[1]) + radius * abs(slew - g[2])
+        if not (moved < margin and reach <= g[3]):  # NaN (never gathered) compares False
+            g[0], g[1], g[2], g[3], g[4], g[5] = cx, cy, slew, reach + margin, math.cos(slew), math.sin(slew)
+        gx, gy, g_width, g_cos, g_sin, g_radius = g[0], g[1], g[3], g[4], g[5], radius + margin
+        extent = g_radius * abs(g_sin) + g_width * abs(g_cos)  # the rectangle's half-height in Y
+        iy0 = max(int(np.ceil((gy - extent - y0) / h)), 0)
+        iy1 = min(int(np.floor((gy + extent - y0) / h)), ny - 1)
+        cos, sin = math.cos(slew), math.sin(slew)
+        z = heights[run]
+        weight = wx = wy = wz = wa = 0.0
+        deepest = -np.inf
+        for iy in range(iy0, iy1 + 1):
+            first, last = _columns(ys[iy] - gy, gx - x0, g_cos, g_sin, g_width, g_radius, h, nx)
+            y = ys[iy]
+            for ix in range(first, last + 1):
+                x = xs[ix]
+                dx, dy = x - cx, y - cy
+                along = dx * cos + dy * sin
+                across = dy * cos - dx * sin
+                span = radius2 - along * along
+                if span < 0.0:  # beyond the wheel's rim along the boom: never cut
+                    continue
+                envelope = max(abs(across) - half_width, 0.0) * side_slope - math.sqrt(span) + cz
+                new = max(envelope, floor)  # a wheel that dips below the pile cuts no ground
+                old = z[iy, ix]
+                if not old > new:
+                    continue
+                z[iy, ix] = new
+                removed = old - new
+                weight += removed
+                wx += removed * x
+                wy += removed * y
+                wz += removed * (old + new)
+                wa += removed * across
+                drop = max(cz - old, 0.0)
+                deepest = max(deepest, math.sqrt(max(radius2 - drop * drop, 0.0)) - abs(along))
+        if weight == 0.0:
+            continue
+        volume[run] = weight * cell_area
+        centroid[run, 0], centroid[run, 1], centroid[run, 2] = wx / weight, wy / weight, wz / (2 * weight)
+        depth[run] = max(deepest, 0.0)
+        side[run] = np.sign(wa)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _columns(dy, offset, cos, sin, half_width, radius, h, nx):
+    """The first and last column of a row `dy` (m) from the gathering's CP, `offset` (m) from the
+    grid's first column, whose centres lie within `half_width` of the wheel's plane and within
+    `radius` of its centre along the boom (first > last: none). across = dy cos - dx sin and
+    along = dx cos + dy sin: each is |centre - dx slope| <= half, an interval of dx."""
+    low, high = -np.inf, np.inf
+    for centre, half, slope in ((dy * cos, half_width, sin), (-dy * sin, radius, cos)):
+        if abs(slope) < 1e-12:  # dx plays no part: the whole row, or none of it
+            if abs(centre) > half:
+                low = np.inf
+            continue
+        a, b = (centre - half) / slope, (centre + half) / slope
+        low, high = max(low, min(a, b)), min(high, max(a, b))
+    first = max(np.ceil((offset + low) / h), 0.0)
+    last = min(np.floor((offset + high) / h), nx - 1.0)
+    if not last >= first:
+        return 0, -1
+    return int(first), int(last)
