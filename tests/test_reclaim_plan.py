@@ -290,6 +290,112 @@ def test_the_nominal_reference_has_a_continuous_velocity(small_plan):
     assert len(waypoints.times) == len(small_plan.segments) + 1
 
 
+class NumpyScalarReference:
+    """BenchReference as it was first written, numpy on scalars (its speed law too): the
+    sequence the float arithmetic of bwr_twin.planning.follower must reproduce to the bit."""
+
+    def __init__(self, plan, runs, period):
+        self.plan, self.runs, self.period = plan, runs, period
+        self.q = np.repeat(plan.start[None], runs, axis=0)
+        self.qd, self.qdd = np.zeros((runs, 3)), np.zeros((runs, 3))
+        self.segment = np.zeros(runs, dtype=np.int64)
+        self.bench = np.full(runs, plan.segments[0].bench, dtype=np.int64)
+        self.elapsed, self.stopping, self.finished = np.zeros(runs), np.zeros(runs, bool), np.zeros(runs, bool)
+        self._a, self._top, self._trim = float(plan.acceleration[1]), float(plan.rated_speed[1]), np.ones(runs)
+        for run in range(runs):
+            self._plan_period(run)
+
+    def phase(self):
+        cutting, steady, depth = np.zeros(self.runs, bool), np.zeros(self.runs, bool), np.full(self.runs, np.nan)
+        for run in range(self.runs):
+            p = None if self.finished[run] else self.plan.segments[self.segment[run]]
+            if isinstance(p, Pass):
+                slew = self.q[run, 1]
+                cutting[run], steady[run] = p.cuts_at(slew), p.steady_at(slew)
+                depth[run] = p.cut_depth * abs(np.cos(slew))
+        return self.bench.copy(), cutting, steady, depth
+
+    def advance(self, trim=None, stop=None):
+        if trim is not None:
+            self._trim = trim
+        if stop is not None:
+            self.stopping |= stop
+        for run in range(self.runs):
+            if self.finished[run]:
+                continue
+            segment = self.plan.segments[self.segment[run]]
+            if isinstance(segment, Move):
+                self.elapsed[run] += self.period
+                if self.elapsed[run] >= segment.duration - 1e-9:
+                    self._next(run, segment.end)
+            else:
+                q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
+                slew = q[1] + qd[1] * self.period + 0.5 * qdd[1] * self.period**2
+                speed = qd[1] + qdd[1] * self.period
+                q[1], qd[1] = slew, speed
+                if (segment.end - slew) * segment.direction <= 1e-9 or (self.stopping[run] and speed == 0.0):
+                    q[1] = segment.end if not self.stopping[run] else slew
+                    self._next(run, q.copy())
+            if not self.finished[run]:
+                self._plan_period(run)
+
+    def _next(self, run, at):
+        self.segment[run] += 1
+        self.elapsed[run] = 0.0
+        self.q[run], self.qd[run], self.qdd[run] = at, 0.0, 0.0
+        if self.segment[run] >= len(self.plan.segments) or self.stopping[run]:
+            self.finished[run] = True
+            self.segment[run] = len(self.plan.segments)
+        else:
+            self.bench[run] = self.plan.segments[self.segment[run]].bench
+
+    def _plan_period(self, run):
+        segment, law = self.plan.segments[self.segment[run]], self.plan.law
+        if isinstance(segment, Move):
+            self.q[run], self.qd[run], self.qdd[run] = segment.sample(self.elapsed[run])
+            return
+        q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
+        direction, a, dt = segment.direction, self._a, self.period
+        if self.stopping[run]:
+            wanted = 0.0
+        else:
+            remaining = max((segment.end - q[1]) * direction, 0.0)
+            angle = q[1] if law.law == "cosine" else 0.5 * (segment.cut[0] + segment.cut[1])
+            cosine = max(abs(np.cos(angle)), np.cos(law.cap))
+            speed = law.volume_rate / (segment.face_height * segment.cut_depth * cosine * segment.radius)
+            rest = remaining - 0.5 * abs(qd[1]) * dt
+            brake = np.sqrt((a * dt) ** 2 + 2.0 * a * max(rest, 0.0)) - a * dt
+            wanted = max(min(min(speed * self._trim[run], self._top, brake), 2.0 * remaining / dt - abs(qd[1])), 0.0)
+        change = np.clip(direction * wanted - qd[1], -a * dt, a * dt)
+        if self.stopping[run] and abs(qd[1]) <= a * dt:
+            change = -qd[1]
+        qdd[:] = 0.0
+        qdd[1] = change / dt
+
+
+def test_the_reference_is_the_numpy_one_to_the_bit_on_the_heavy_bench():
+    """Three runs follow heavy_bench_reclaim's plan under wandering trims, one of them stopped
+    early: every period's references and phase are those of the numpy reference, exactly."""
+    scene = load_scene(SCENES / "heavy_bench_reclaim.toml")
+    plan, limits = plan_scene(scene), scene.reclaim.rate_control.trim_limits
+    runs, rng, period = 3, np.random.default_rng(3), scene.simulation.control_period
+    expected, got = NumpyScalarReference(plan, runs, period), BenchReference(plan, runs, period, Machine(HEAVY_MJCF).fk)
+    trim, rows = np.ones(runs), {"expected": [], "got": []}
+    while not expected.finished.all():
+        phase = got.phase()
+        for name, r, fields in (("expected", expected, expected.phase()),
+                                ("got", got, (phase.bench, phase.cutting, phase.steady, phase.planned_depth))):
+            rows[name].append(np.concatenate([r.q.ravel(), r.qd.ravel(), r.qdd.ravel(), r.segment, r.bench,
+                                              r.finished, *fields]))
+        trim = np.clip(trim + rng.normal(0.0, 0.02, runs), *limits)
+        stop = np.array([False, True, False]) if len(rows["got"]) == 40_000 else None
+        expected.advance(trim, stop)
+        got.advance(trim, stop)
+    assert got.finished.all() and len(rows["got"]) > 80_000
+    np.testing.assert_array_equal(np.array(rows["got"]), np.array(rows["expected"]))
+    assert 400.0 < got.waypoints(1)[0].times[-1] < got.waypoints(0)[0].times[-1] - 100.0  # the stopped run rests
+
+
 # -- stop conditions and rate control, simulated ------------------------------------------------
 
 STOP_TIME = 48.0  # s: in the second pass of the small scene (it runs from about 39 s to 59 s)

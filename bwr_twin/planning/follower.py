@@ -6,17 +6,22 @@ their cubics; a slew pass's speed is decided every period from the speed law tim
 trim, reached and left within the slew acceleration and the rated speed, and braked to rest
 exactly at the pass's end. The slew reference's acceleration is constant over a period, so its
 position, velocity and acceleration agree exactly.
+
+Every run is followed every control period, so a period's arithmetic is `math` on Python
+floats, read from and written to the (runs, 3) arrays one value at a time: numpy on scalars
+costs a microsecond an operation.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from bwr_twin.planning.plan import BenchPlan, Move, Pass
-from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.planning.trajectory import Trajectory, rest_to_rest
 
 SLEW = 1
 END_TOLERANCE = 1e-9  # rad short of a pass's end that always counts as there (55 nm at 55 m)
@@ -84,15 +89,17 @@ class BenchReference:
         self.qdd = np.zeros((runs, 3))
         self.segment = np.zeros(runs, dtype=np.int64)
         self.bench = np.full(runs, plan.segments[0].bench, dtype=np.int64)
-        self.elapsed = np.zeros(runs)  # s into the current move
-        self.stopping = np.zeros(runs, dtype=bool)
         self.finished = np.zeros(runs, dtype=bool)
         self.k = 0
+        self._elapsed = [0.0] * runs  # s into the current move
+        self.stopping = np.zeros(runs, dtype=bool)
+        # each move's ends as Python floats, by segment index
+        self._ends = {i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments) if isinstance(s, Move)}
         # (time, q, name) at each segment's start, and at the end
         self._started = [[(0.0, plan.start.copy(), segment_name(plan, 0))] for _ in range(runs)]
         self._slew_acceleration = float(plan.acceleration[SLEW])
         self._top = float(plan.rated_speed[SLEW])
-        self._trim = np.ones(runs)
+        self._trim = [1.0] * runs
         for run in range(runs):
             self._plan_period(run)
 
@@ -104,10 +111,10 @@ class BenchReference:
             p = self.current_pass(run)
             if p is None:
                 continue
-            slew = self.q[run, SLEW]
+            slew = self.q.item(run, SLEW)
             phase.cutting[run] = p.cuts_at(slew)
             phase.steady[run] = p.steady_at(slew)
-            phase.planned_depth[run] = p.cut_depth * abs(np.cos(slew))
+            phase.planned_depth[run] = p.cut_depth * abs(math.cos(slew))
         return phase
 
     def current_pass(self, run: int) -> Pass | None:
@@ -120,34 +127,37 @@ class BenchReference:
         """Move every run on by one control period; `trim` (runs,) scales the speed law from now
         on, `stop` (runs,) bool ends a run's plan: a pass brakes to rest, a move is completed."""
         if trim is not None:
-            self._trim = trim
+            self._trim = np.asarray(trim, dtype=float).tolist()
         if stop is not None:
             self.stopping |= stop
         self.k += 1
+        dt = self.period
         for run in range(self.runs):
             if self.finished[run]:
                 continue
-            segment = self.plan.segments[self.segment[run]]
+            index = self.segment.item(run)
+            segment = self.plan.segments[index]
             if isinstance(segment, Move):
-                self.elapsed[run] += self.period
-                if self.elapsed[run] >= segment.duration - 1e-9:
+                self._elapsed[run] += dt
+                if self._elapsed[run] >= segment.duration - 1e-9:
                     self._next(run, segment.end)
             else:
-                q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
-                slew = q[SLEW] + qd[SLEW] * self.period + 0.5 * qdd[SLEW] * self.period**2
-                speed = qd[SLEW] + qdd[SLEW] * self.period
-                q[SLEW], qd[SLEW] = slew, speed
+                q, qd, qdd = self.q.item(run, SLEW), self.qd.item(run, SLEW), self.qdd.item(run, SLEW)
+                slew = q + qd * dt + 0.5 * qdd * dt**2
+                speed = qd + qdd * dt
+                self.q[run, SLEW], self.qd[run, SLEW] = slew, speed
+                stopping = self.stopping.item(run)
                 there = (segment.end - slew) * segment.direction <= END_TOLERANCE  # never past it
-                if there or (self.stopping[run] and speed == 0.0):
-                    q[SLEW] = segment.end if not self.stopping[run] else slew
-                    self._next(run, q.copy())
+                if there or (stopping and speed == 0.0):
+                    self.q[run, SLEW] = segment.end if not stopping else slew
+                    self._next(run, self.q[run].copy())
             if not self.finished[run]:
                 self._plan_period(run)
 
     def _next(self, run: int, at: np.ndarray) -> None:
         """Run `run` has completed its segment at joint values `at`: on to the next, or rest."""
         self.segment[run] += 1
-        self.elapsed[run] = 0.0
+        self._elapsed[run] = 0.0
         self.q[run] = at
         self.qd[run] = 0.0
         self.qdd[run] = 0.0
@@ -160,31 +170,37 @@ class BenchReference:
 
     def _plan_period(self, run: int) -> None:
         """The reference of the current period for run `run`, within its segment."""
-        segment = self.plan.segments[self.segment[run]]
+        index = self.segment.item(run)
+        segment = self.plan.segments[index]
         if isinstance(segment, Move):
-            self.q[run], self.qd[run], self.qdd[run] = segment.sample(self.elapsed[run])
+            start, end = self._ends[index]
+            s = min(max(self._elapsed[run] / segment.duration, 0.0), 1.0)  # as Move.sample
+            q, qd, qdd = self.q, self.qd, self.qdd
+            for j in range(3):
+                q[run, j], qd[run, j], qdd[run, j] = rest_to_rest(start[j], end[j], segment.duration, s)
             return
-        q, qd, qdd = self.q[run], self.qd[run], self.qdd[run]
+        slew, speed = self.q.item(run, SLEW), self.qd.item(run, SLEW)
         direction, a, dt = segment.direction, self._slew_acceleration, self.period
-        if self.stopping[run]:
+        stopping = self.stopping.item(run)
+        if stopping:
             wanted = 0.0
         else:
-            remaining = max((segment.end - q[SLEW]) * direction, 0.0)
-            law = self.plan.law.speed(segment, q[SLEW]) * self._trim[run]
+            remaining = max((segment.end - slew) * direction, 0.0)
+            law = self.plan.law.speed(segment, slew) * self._trim[run]
             # The fastest speed v at the period's end from which braking by a dt a period still
             # stops at the pass's end: this period's (|qd| + v) dt / 2 and then at most
             # v^2 / 2a + v dt / 2 of braking fit in what remains.
-            rest = remaining - 0.5 * abs(qd[SLEW]) * dt
-            brake = np.sqrt((a * dt) ** 2 + 2.0 * a * max(rest, 0.0)) - a * dt
+            rest = remaining - 0.5 * abs(speed) * dt
+            brake = math.sqrt((a * dt) ** 2 + 2.0 * a * max(rest, 0.0)) - a * dt
             wanted = min(law, self._top, brake)
             # Land on the end: never step past it within this period.
-            wanted = min(wanted, 2.0 * remaining / dt - abs(qd[SLEW]))
+            wanted = min(wanted, 2.0 * remaining / dt - abs(speed))
             wanted = max(wanted, 0.0)
-        change = np.clip(direction * wanted - qd[SLEW], -a * dt, a * dt)
-        if self.stopping[run] and abs(qd[SLEW]) <= a * dt:
-            change = -qd[SLEW]
-        qdd[:] = 0.0
-        qdd[SLEW] = change / dt
+        change = min(max(direction * wanted - speed, -a * dt), a * dt)
+        if stopping and abs(speed) <= a * dt:
+            change = -speed
+        # Travel and luff rest through a pass: _next left their qdd at 0.
+        self.qdd[run, SLEW] = change / dt
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         """Where run `run` began each segment (and where it ended), its reclaim as via points,

@@ -3,6 +3,7 @@ segments, the speed law of its passes, and what the planner predicts of them."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,9 +68,9 @@ class SpeedLaw:
     rated: float  # rad/s, the slew drive's rated speed
 
     def speed(self, p: Pass, slew: float) -> float:
-        """rad/s at `slew` in pass p, before any trim."""
+        """rad/s at `slew` in pass p, before any trim; `math` on floats: it runs every period."""
         angle = slew if self.law == "cosine" else 0.5 * (p.cut[0] + p.cut[1])
-        cosine = max(abs(np.cos(angle)), np.cos(self.cap))
+        cosine = max(abs(math.cos(angle)), math.cos(self.cap))
         return self.volume_rate / (p.face_height * p.cut_depth * cosine * p.radius)
 
 
