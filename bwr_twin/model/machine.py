@@ -27,6 +27,10 @@ CP_SITE = "bucket_wheel_center"
 ENVELOPE_KEY = "envelope_{axis}"
 WHEEL_KEYS = ("wheel_diameter", "wheel_width", "wheel_buckets", "bucket_volume", "wheel_discharges_per_minute")
 WHEEL_POWER_KEY = "wheel_power"  # optional: without it, the cutting force has no ceiling
+# Optional, each with its default in Wheel: the cut's flanks, the highest bench, the turn's clearance.
+WHEEL_SIDE_SLOPE_KEY = "wheel_side_slope"
+WHEEL_BENCH_SHARE_KEY = "wheel_bench_share"
+WHEEL_CLEARANCE_KEY = "wheel_clearance"
 RAIL_CLEARANCE_KEY = "rail_clearance"
 RATED_SPEED_KEY = "rated_speed_{axis}"  # optional: without it, an axis has no rated speed (inf)
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
@@ -77,6 +81,11 @@ class Wheel:
     bucket_volume: float  # m^3 one bucket holds
     discharges_per_minute: float  # buckets emptied a minute (buckets x rpm)
     power: float = np.inf  # W, the wheel drive's rating: the most it can cut with
+    # Without their keys in the file: flanks at 80.5 deg, a few grid cells wide (docs/stockpile.md);
+    # benches at most 0.6 x D, the bulk-handling rule (docs/reclaiming.md); half a metre of clearance.
+    side_slope: float = 6.0  # m the cut's flanks rise per m beside the buckets' width
+    bench_share: float = 0.6  # the highest bench the wheel takes, as a share of its diameter
+    clearance: float = 0.5  # m the wheel turns clear of the pile's edge beyond its speed ramp
 
     @property
     def radius(self) -> float:
@@ -256,11 +265,16 @@ class Machine:
         (diameter, width, buckets, volume, discharges) = (float(values[key][0]) for key in WHEEL_KEYS)
         if buckets != round(buckets):
             raise ModelError(f"{self.path}: custom numeric 'wheel_buckets' must be a whole number, got {buckets}")
-        power = self._numeric(WHEEL_POWER_KEY)
-        if power is not None and (len(power) != 1 or not power[0] > 0):
-            raise ModelError(f"{self.path}: custom numeric '{WHEEL_POWER_KEY}' must hold one value > 0")
-        return Wheel(diameter, width, int(buckets), volume, discharges,
-                     float(power[0]) if power is not None else np.inf)
+        optional = {}
+        for name, key in (("power", WHEEL_POWER_KEY), ("side_slope", WHEEL_SIDE_SLOPE_KEY),
+                          ("bench_share", WHEEL_BENCH_SHARE_KEY), ("clearance", WHEEL_CLEARANCE_KEY)):
+            value = self._numeric(key)
+            if value is None:
+                continue
+            if len(value) != 1 or not value[0] > 0:
+                raise ModelError(f"{self.path}: custom numeric '{key}' must hold one value > 0")
+            optional[name] = float(value[0])
+        return Wheel(diameter, width, int(buckets), volume, discharges, **optional)
 
     def _read_rated_speed(self) -> np.ndarray:
         speeds = np.full(3, np.inf)
