@@ -47,8 +47,8 @@ class Belief:
 
     def update(self, q: np.ndarray, qd: np.ndarray, ids: np.ndarray | None = None) -> None:
         """Compute M and bias at the (runs, 3) measured state, for the runs `ids` (None: all)."""
-        self._qpos[:] = q
-        self._qvel[:] = qd
+        self._qpos[...] = q
+        self._qvel[...] = qd
         # Positions give M (composite rigid bodies), velocities the bias (Newton-Euler, no qacc).
         self._batch.forward(ids, stage=mujoco.mjtStage.mjSTAGE_VEL)
         self._dense_current = False

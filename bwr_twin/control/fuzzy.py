@@ -300,25 +300,9 @@ def surface_at(kernel, x: float, y: float) -> float:  # pragma: no cover - compi
     """FLC(x, y) of a surface's `kernel` = (coefficients, e0, scale_e, ec0, scale_ec, cells):
     the triangle of the cell (x, y) falls in, saturated at the universe ends; NaN gives NaN."""
     coef, e0, se, ec0, sec, m = kernel
-    u = (x - e0) * se
-    if 0.0 < u < m:
-        i = int(u)
-        s = u - i
-    elif u <= 0.0:
-        i, s = 0, 0.0
-    elif u >= m:
-        i, s = m - 1, 1.0
-    else:
-        return math.nan
-    v = (y - ec0) * sec
-    if 0.0 < v < m:
-        j = int(v)
-        t = v - j
-    elif v <= 0.0:
-        j, t = 0, 0.0
-    elif v >= m:
-        j, t = m - 1, 1.0
-    else:
+    i, s = _cell((x - e0) * se, m)
+    j, t = _cell((y - ec0) * sec, m)
+    if i < 0 or j < 0:
         return math.nan
     q = 4 * (i * m + j)
     if s < t:
@@ -326,6 +310,19 @@ def surface_at(kernel, x: float, y: float) -> float:  # pragma: no cover - compi
     if s + t >= 1.0:
         q += 1
     return coef[q, 0] + coef[q, 1] * s + coef[q, 2] * t
+
+
+@numba.njit(cache=True)
+def _cell(u: float, m: int) -> tuple[int, float]:  # pragma: no cover - compiled
+    """The cell of grid coordinate u on [0, m] and how far into it, saturated at the ends; -1 for NaN."""
+    if 0.0 < u < m:
+        i = int(u)
+        return i, u - i
+    if u <= 0.0:
+        return 0, 0.0
+    if u >= m:
+        return m - 1, 1.0
+    return -1, 0.0  # NaN fails every comparison
 
 
 @numba.njit(cache=True)

@@ -7,6 +7,7 @@ a backward difference through a first-order low-pass of the scene's time constan
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from bwr_twin.sim.parameters import RunParameters
@@ -28,18 +29,26 @@ class Encoders:
 
     def quantise(self, q: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Positions rounded to the encoder resolution, (runs, 3)."""
-        out = np.divide(q, self._resolution, out=out)
-        np.round(out, out=out)
-        return np.multiply(out, self._resolution, out=out)
+        out = np.empty(q.shape) if out is None else out
+        _quantise(q, self._resolution, out)
+        return out
 
     def measure(self, q: np.ndarray, qd: np.ndarray, q_measured: np.ndarray, qd_measured: np.ndarray) -> None:
         """Write the measured positions and velocities of the true (runs, 3) joint state into
         `q_measured` and `qd_measured`; call once a period."""
         self.quantise(q, out=q_measured)
         if not self._any_estimate:
-            np.copyto(qd_measured, qd)
+            qd_measured[...] = qd
             return
         difference = (q_measured - self._q_previous) / self._period
         self._qd_estimate += (difference - self._qd_estimate) * self._filter_gain
         np.copyto(self._q_previous, q_measured)
         np.copyto(qd_measured, np.where(self._estimate, self._qd_estimate, qd))
+
+
+@numba.njit(cache=True)
+def _quantise(q, resolution, out):  # pragma: no cover - compiled
+    """round(q / resolution) x resolution, halves to even as numpy rounds."""
+    for r in range(q.shape[0]):
+        for j in range(q.shape[1]):
+            out[r, j] = np.rint(q[r, j] / resolution[r, j]) * resolution[r, j]

@@ -182,8 +182,8 @@ class Lockstep:
             runs, self.samples, period, round(sim.record_period / period), machine,
             path=tracking.rows if tracking.shared else None, wind_mean=parameters.wind_speed,
             reclaim=self.reclaim is not None)
-        observer.q[0], observer.qd[0] = plant.qpos, plant.qvel
-        self._controller: tuple = (None, ())  # the controller, and the names of the signals it declares
+        observer.q[0], observer.qd[0] = plant.qpos, plant.qvel  # the first period's start
+        self._controller: Controller | None = None  # whose declared signals are recorded
         # What drivers may read: views that cannot be written.
         self.q_true, self.qd_true, self.drive_force = (_read_only(a) for a in (plant.qpos, plant.qvel,
                                                                                plant.drive_force))
@@ -225,43 +225,43 @@ class Lockstep:
         """Record the signals `controller` declares (`Controller.signals`); before the first period."""
         signals = tuple(getattr(controller, "signals", ()))
         self._observer.watch_controller(signals, self.samples)
-        self._controller = (controller, tuple((s.name, self._observer.controller[s.name]) for s in signals))
+        self._controller = controller
 
     def measure(self) -> tuple[np.ndarray, np.ndarray]:
         """The encoders' (runs, 3) positions and velocities at the start of period k (read-only); once a period."""
-        observer, row = self._observer, self._observer.row
-        self._encoders.measure(observer.q[row], observer.qd[row], observer.q_measured[row],
-                               observer.qd_measured[row])
+        observer = self._observer
+        row = observer.rows[observer.row]
+        self._encoders.measure(row.q, row.qd, row.q_measured, row.qd_measured)
         q_measured, qd_measured = self._measured
-        return q_measured[row], qd_measured[row]
+        return q_measured[observer.row], qd_measured[observer.row]
 
     def advance(self, command: np.ndarray) -> None:
         """Hold the (runs, 3) drive forces (N, N m) over period k, with the period's disturbances."""
         k, observer, plant, tracking = self.k, self._observer, self._plant, self.tracking
-        row = observer.row
-        np.copyto(observer.command[row], command)
-        disturbance = observer.disturbance[row]
-        np.copyto(disturbance, self._disturbances.forces.sample(k))
+        row = observer.rows[observer.row]
+        row.command[...] = command
+        disturbance = row.disturbance
+        disturbance[...] = self._disturbances.forces.sample(k)
         phase = tracking.phase()
         reclaim = self.reclaim
         if reclaim is not None:
-            load = reclaim.step(k, observer.q[row], plant.alive, phase)
+            load = reclaim.step(k, row.q, plant.alive, phase)
             if load is not None:
                 disturbance += load
-            for name, value in zip(observer.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
-                observer.reclaim[name][row] = value
+            for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
+                rows[...] = value
         gust = self._disturbances.gusts.sample(k)
-        observer.gust[row] = gust
-        plant.step(observer.command[row], disturbance, gust)
-        np.copyto(observer.drive_force[row], plant.drive_force)
-        np.copyto(observer.q[row + 1], plant.qpos)
-        np.copyto(observer.qd[row + 1], plant.qvel)
-        if not tracking.shared:  # a per-run reference changes in place: the record keeps this period's
-            for rows, value in zip((observer.q_desired, observer.qd_desired, observer.qdd_desired), tracking.now()):
-                rows[row] = value
-        controller, declared = self._controller
-        for name, rows in declared:
-            rows[row] = getattr(controller, name)
+        row.gust[...] = gust
+        plant.step(row.command, disturbance, gust)
+        row.drive_force[...] = plant.drive_force
+        row.q_next[...] = plant.qpos
+        row.qd_next[...] = plant.qvel
+        if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's
+            for rows, value in zip(row.reference, tracking.now()):
+                rows[...] = value
+        controller = self._controller
+        for name, rows in row.controller:
+            rows[...] = getattr(controller, name)
         self.k = k = k + 1
         end = tracking.advance(k, reclaim, phase)
         if end is not None and end < self.samples:
@@ -270,8 +270,8 @@ class Lockstep:
             observer.end_at(end)
         if self._observe:
             observer.period_done()
-        else:
-            observer.q[0], observer.qd[0] = observer.q[1], observer.qd[1]
+        else:  # only the next period's start is kept
+            row.q[...], row.qd[...] = row.q_next, row.qd_next
         if k % HEALTH_CHECK_EVERY == 0:
             plant.check_health()
         if k == self.samples:

@@ -55,11 +55,13 @@ class Observer:
                         for name, _, width in RECLAIM} if reclaim else None
         self.start = 0  # the block's first sample
         self.row = 0  # the current period's row
+        self.rows = [Row(self, i) for i in range(BLOCK)]  # each row's views, made once
 
     def watch_controller(self, signals: tuple[Signal, ...], samples: int) -> None:
         """Record the controller's declared signals too; before the first period."""
         self.recorder = Recorder(samples, self._record_every, self.runs, signals, reclaim=self.reclaim is not None)
         self.controller = {s.name: np.zeros((BLOCK, self.runs, s.width)) for s in signals}
+        self.rows = [Row(self, i) for i in range(BLOCK)]
 
     def period_done(self) -> None:
         """The current period's row is written (and its end state in the row after): on to the next."""
@@ -116,3 +118,21 @@ class Observer:
         fk = self.machine.fk
         cp_error = np.linalg.norm(fk(q_desired) - fk(self.q[picked]), axis=-1)
         self.metrics.add_cp_error(start + picked, cp_error)
+
+
+class Row:
+    """Views of one row of an observer's block, made once: indexing the block anew every period
+    would cost more than writing the row."""
+
+    __slots__ = ("q", "qd", "q_next", "qd_next", "q_measured", "qd_measured", "command", "drive_force",
+                 "disturbance", "gust", "reference", "controller", "reclaim")
+
+    def __init__(self, observer: Observer, i: int):
+        o = observer
+        self.q, self.qd, self.q_next, self.qd_next = o.q[i], o.qd[i], o.q[i + 1], o.qd[i + 1]
+        self.q_measured, self.qd_measured = o.q_measured[i], o.qd_measured[i]
+        self.command, self.drive_force, self.disturbance, self.gust = (o.command[i], o.drive_force[i],
+                                                                       o.disturbance[i], o.gust[i])
+        self.reference = None if o.q_desired is None else (o.q_desired[i], o.qd_desired[i], o.qdd_desired[i])
+        self.controller = tuple((name, rows[i]) for name, rows in o.controller.items())
+        self.reclaim = None if o.reclaim is None else tuple(rows[i] for rows in o.reclaim.values())

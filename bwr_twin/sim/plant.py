@@ -57,6 +57,7 @@ class Plant:
         ids = list(machine.actuator_ids)
         # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
         self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
+        self._drive_ctrl = self._ctrl[:, self._actuators] if isinstance(self._actuators, slice) else None
         self._gear = machine.model.actuator_gear[ids, 0].copy()
         substeps = round(control_period / timestep)
         # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
@@ -84,8 +85,11 @@ class Plant:
     def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
         """Hold the (runs, 3) drive forces and disturbances, and each run's (runs,) gust on its
         mean wind, for one control period."""
-        self._ctrl[:, self._actuators] = drive_force / self._gear
-        self._applied[:] = disturbance
+        if self._drive_ctrl is not None:
+            np.divide(drive_force, self._gear, out=self._drive_ctrl)
+        else:
+            self._ctrl[:, self._actuators] = drive_force / self._gear
+        self._applied[...] = disturbance
         if self._wind is not None:
             self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
         for steps in self._calls:
@@ -94,7 +98,7 @@ class Plant:
             except BatchError as exc:
                 for run in exc.ids:
                     self._fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
-        if self._warning_counts.any():  # cheap each period, so a failure's time is exact
+        if np.count_nonzero(self._warning_counts):  # cheap each period, so a failure's time is exact
             self.check_health()
 
     def check_health(self) -> None:
