@@ -9,7 +9,7 @@ from conftest import HEAVY_MJCF, SCENES
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine, Wheel
-from bwr_twin.stockpile.cutting import CELL_MARGIN, SIDE_SLOPE, Cut, Cutter
+from bwr_twin.stockpile.cutting import CELL_MARGIN, Cut, Cutter
 from bwr_twin.stockpile.surface import YARD_FLOOR, Surface, build_surface
 
 
@@ -32,7 +32,8 @@ class NumpyCutter:
             cx, cy, cz = cp[run]
             if cz - radius >= self._top:
                 continue
-            cells = self._cells_near(run, cx, cy, slew[run], half_width + (self._top - cz + radius) / SIDE_SLOPE)
+            reach = half_width + (self._top - cz + radius) / self.wheel.side_slope
+            cells = self._cells_near(run, cx, cy, slew[run], reach)
             if cells is None:
                 continue
             flat, x, y = cells
@@ -40,7 +41,7 @@ class NumpyCutter:
             dx, dy = x - cx, y - cy
             along = dx * cos + dy * sin
             across = dy * cos - dx * sin
-            envelope = np.maximum(np.abs(across) - half_width, 0.0) * SIDE_SLOPE
+            envelope = np.maximum(np.abs(across) - half_width, 0.0) * self.wheel.side_slope
             span = radius**2 - along * along
             outside = span < 0.0
             envelope = np.maximum(envelope - np.sqrt(np.maximum(span, 0.0)) + cz, YARD_FLOOR)

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from conftest import HEAVY_MJCF, SCENES, VARIANT_MJCF
 
-from bwr_twin import SceneError
+from bwr_twin import ModelError, SceneError
 from bwr_twin.config.scene import StockpileSection, WindrowSection, load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import set_stockpile_heights
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
-from bwr_twin.stockpile.cutting import SIDE_SLOPE, Cutter
+from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.surface import Surface, build_surface
 
@@ -118,7 +118,7 @@ def test_an_oblique_travel_cut_removes_the_swept_envelope():
     along = xs * np.cos(slew) + ys * np.sin(slew)
     across = ys * np.cos(slew) - xs * np.sin(slew)
     envelope = np.where(np.abs(along) < r, cp[2] - np.sqrt(np.clip(r**2 - along**2, 0, None)), np.inf)
-    envelope = envelope + SIDE_SLOPE * np.clip(np.abs(across) - half_width, 0, None)
+    envelope = envelope + machine.wheel.side_slope * np.clip(np.abs(across) - half_width, 0, None)
     floor = envelope.min(axis=0)
     section = np.trapezoid(np.clip(height - floor, 0, None), ys)
     length = np.count_nonzero(surface.z[len(surface.y) // 2]) * spacing
@@ -144,6 +144,25 @@ def test_the_digging_load_resists_the_slewing_within_the_wheel_drive(short_dig):
 
 def machine_rim_speed() -> float:
     return Machine(HEAVY_MJCF).wheel.rim_speed
+
+
+def test_the_wheels_optional_keys_have_their_defaults_and_are_checked(tmp_path):
+    """wheel_side_slope, wheel_bench_share and wheel_clearance: the file's values, the
+    documented defaults without them, refused unless one value > 0."""
+    text = HEAVY_MJCF.read_text()
+    keys = ("wheel_side_slope", "wheel_bench_share", "wheel_clearance")
+    for key in keys:
+        assert f'<numeric name="{key}"' in text
+    edited = tmp_path / "bwr_heavy.xml"
+    edited.write_text(text.replace('name="wheel_side_slope" data="6"', 'name="wheel_side_slope" data="4"'))
+    assert Machine(edited).wheel.side_slope == 4.0
+    lines = [line for line in text.splitlines() if not any(f'name="{key}"' in line for key in keys)]
+    edited.write_text("\n".join(lines))
+    wheel = Machine(edited).wheel
+    assert (wheel.side_slope, wheel.bench_share, wheel.clearance) == (6.0, 0.6, 0.5)
+    edited.write_text(text.replace('name="wheel_clearance" data="0.5"', 'name="wheel_clearance" data="0 1"'))
+    with pytest.raises(ModelError, match="bwr_heavy.xml: custom numeric 'wheel_clearance' must hold one value > 0"):
+        Machine(edited)
 
 
 def test_the_pile_stands_in_the_mujoco_world_where_rays_measure_it():

@@ -35,12 +35,10 @@ from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.surface import Surface, build_surface
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
-MAX_BENCH_SHARE = 0.6  # of the wheel's diameter: the highest bench a wheel takes (docs/reclaiming.md)
 PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell
 DIG_STEP = 0.05  # m the wheel moves between cuts when the planner digs its copy of the pile
 LANDING_TOLERANCE = 0.01  # m of travel to which the landing is found
 SEARCH_STEP = 2.0  # m of travel between looks for the face
-CLEARANCE = 0.5  # m the wheel turns clear of the pile's edge beyond its speed ramp
 FULL_FACE = 0.9  # a pass cuts steadily where its face's section is at least this share of the full one
 SMOOTHING = 1.0  # m of the wheel's travel over which the predicted section is averaged
 MIN_MOVE = 1.0  # s: the shortest move
@@ -91,10 +89,11 @@ class _Planner:
 
     def _check_settings(self) -> None:
         s, wheel, where, machine = self.s, self.wheel, self.where, self.machine
-        if s.bench_height > MAX_BENCH_SHARE * wheel.diameter + 1e-9:
+        share = wheel.bench_share  # the MJCF's 'wheel_bench_share' (docs/reclaiming.md)
+        if s.bench_height > share * wheel.diameter + 1e-9:
             raise SceneError(
-                f"{where}: 'bench_height' {s.bench_height:g} m is more than {MAX_BENCH_SHARE:g} x the wheel's "
-                f"{wheel.diameter:g} m diameter ({MAX_BENCH_SHARE * wheel.diameter:g} m): the buckets would not "
+                f"{where}: 'bench_height' {s.bench_height:g} m is more than {share:g} x the wheel's "
+                f"{wheel.diameter:g} m diameter ({share * wheel.diameter:g} m): the buckets would not "
                 "clear the face"
             )
         capacity = wheel.capacity * self.density * SECONDS_PER_HOUR / KG_PER_T
@@ -296,8 +295,9 @@ class _Planner:
         return min(self.law.rated, at_cap * self.s.rate_control.trim_limits[1])
 
     def _margin(self, luff: float) -> float:
-        """rad beyond a pass's cut: room to reach the fastest speed, and some clearance."""
-        return self._fastest(luff) ** 2 / (2 * self.acceleration[1]) + CLEARANCE / self._radius(luff)
+        """rad beyond a pass's cut: room to reach the fastest speed, and the wheel's clearance
+        (the MJCF's 'wheel_clearance')."""
+        return self._fastest(luff) ** 2 / (2 * self.acceleration[1]) + self.wheel.clearance / self._radius(luff)
 
     def _arc(self, travel: float, luff: float, start: float, end: float, step: float) -> tuple[np.ndarray, np.ndarray]:
         """Joint values (n, 3) and CP (n, 3) along a slew from start to end, the wheel moving `step` m apart."""

@@ -3,11 +3,11 @@
 The envelope is the wheel's disc at the CP, in the vertical plane of the boom (the slew
 direction), as wide as the buckets: a cell whose centre lies within half the width of that
 plane and within the disc's span along the boom is lowered to the disc's lower rim. Beside the
-width, the envelope's flanks rise at SIDE_SLOPE: with vertical flanks a slewing wheel would take
-a whole column of cells in one period and the rate would be a train of spikes a cell apart; with
-flanks a few cells wide, cells are lowered a little each period, and the same material is cut,
-a little earlier. The heights only ever fall, so the volume the pile loses is exactly the sum of
-the volumes cut.
+width, the envelope's flanks rise at the wheel's side slope (the MJCF's `wheel_side_slope`, 6 m
+per m unless it says): with vertical flanks a slewing wheel would take a whole column of cells
+in one period and the rate would be a train of spikes a cell apart; with flanks a few cells
+wide, cells are lowered a little each period, and the same material is cut, a little earlier.
+The heights only ever fall, so the volume the pile loses is exactly the sum of the volumes cut.
 
 The cut runs every control period for every run, so it is compiled (numba, cached next to this
 module): one call visits, for each run, only the cells near its wheel.
@@ -25,7 +25,6 @@ from bwr_twin.model.machine import Wheel
 from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 
 CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again
-SIDE_SLOPE = 6.0  # rise (m) per metre beside the wheel's width of the envelope's flanks (80.5 deg)
 
 
 @dataclass
@@ -48,7 +47,7 @@ class Cutter:
         self._x = np.ascontiguousarray(surface.x, dtype=float)
         self._y = np.ascontiguousarray(surface.y, dtype=float)
         top = float(surface.z.max())  # the heights only fall: nothing above this is ever cut
-        self._shape = np.array([wheel.radius, wheel.radius**2, wheel.width / 2, SIDE_SLOPE, top, CELL_MARGIN,
+        self._shape = np.array([wheel.radius, wheel.radius**2, wheel.width / 2, wheel.side_slope, top, CELL_MARGIN,
                                 float(surface.x[0]), float(surface.y[0]), surface.spacing, surface.cell_area,
                                 YARD_FLOOR])
         # Per run, where its wheel was when the cells near it were gathered (NaN: never).
