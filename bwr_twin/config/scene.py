@@ -152,6 +152,9 @@ class StockpileSection:
     grid_spacing: float = 0.25  # m between height samples: a 0.8 m cut spans three
     windrow: WindrowSection | None = None
     surface_file: Path | None = None  # .npz with x, y (grid lines, m) and z (heights, m), or .csv x,y,z points
+    # How the pile's hfield is drawn in the MuJoCo world (bwr_twin.model.spec), nothing else:
+    colour: tuple[float, float, float, float] = (0.55, 0.27, 0.15, 1.0)  # rgba: iron ore's red-brown
+    base_depth: float = 1.0  # m of the hfield's base box below the yard floor, as MuJoCo draws it
 
 
 @dataclass(frozen=True)
@@ -620,9 +623,11 @@ def _check_stockpile(scene: Scene) -> None:
                 raise SceneError(f"{p}: 'digging.{key}' must be >= 0, got {getattr(digging, key)}")
     if pile is None:
         return
-    for key in ("bulk_density", "grid_spacing"):
+    for key in ("bulk_density", "grid_spacing", "base_depth"):
         if not getattr(pile, key) > 0:
             raise SceneError(f"{p}: 'stockpile.{key}' must be > 0, got {getattr(pile, key)}")
+    if not all(0 <= c <= 1 for c in pile.colour):
+        raise SceneError(f"{p}: 'stockpile.colour' (rgba) must lie in [0, 1], got {list(pile.colour)}")
     if (pile.windrow is None) == (pile.surface_file is None):
         raise SceneError(f"{p}: [stockpile] needs either a [stockpile.windrow] or a 'stockpile.surface_file', not both")
     if pile.surface_file is not None and not pile.surface_file.is_file():
