@@ -15,7 +15,7 @@ from conftest import HEAVY_MJCF, SCENES, VARIANT_MJCF
 from bwr_twin import ModelError, SceneError
 from bwr_twin.config.scene import StockpileSection, WindrowSection, load_scene
 from bwr_twin.model.machine import Machine
-from bwr_twin.model.spec import set_stockpile_heights
+from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_heights
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.placement import check_placement
@@ -188,6 +188,19 @@ def test_the_pile_stands_in_the_mujoco_world_where_rays_measure_it():
     assert scan(40.0, 40.0) == pytest.approx(10.0, abs=1e-6)
     # The simulation's model carries no pile: it has no mass and touches nothing.
     assert machine.physics_model().nhfield == 0
+
+
+def test_the_pile_is_drawn_as_its_scene_says():
+    scene = load_scene(SCENES / "heavy_dig_pile.toml", {"stockpile.colour": [0.1, 0.2, 0.3, 1.0],
+                                                        "stockpile.base_depth": 2.0})
+    surface = build_surface(scene.stockpile, scene.path)
+    model = compile_model(HEAVY_MJCF, Edits(stockpile=surface, stockpile_drawing=scene.stockpile))
+    geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, STOCKPILE)
+    assert model.geom_rgba[geom] == pytest.approx([0.1, 0.2, 0.3, 1.0])
+    assert model.hfield_size[0, 3] == 2.0
+    assert load_scene(SCENES / "heavy_dig_pile.toml").stockpile.colour == (0.55, 0.27, 0.15, 1.0)  # iron ore
+    with pytest.raises(SceneError, match=r"'stockpile.colour' \(rgba\) must lie in \[0, 1\], got \[0.5, 0.5, 2.0, 1.0\]"):
+        load_scene(SCENES / "heavy_dig_pile.toml", {"stockpile.colour": [0.5, 0.5, 2.0, 1.0]})
 
 
 def test_a_pile_on_the_rail_or_out_of_reach_or_for_a_machine_without_a_wheel_is_refused():

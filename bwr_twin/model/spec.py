@@ -24,7 +24,6 @@ _POINT_INERTIA = 1e-6  # kg m^2: a point mass, as MuJoCo needs a positive inerti
 
 
 STOCKPILE = "stockpile"  # name of the pile's hfield asset and geom
-_STOCKPILE_BASE = 1.0  # m: depth of the hfield's base box below the yard floor (drawing only)
 
 
 class Heights(Protocol):
@@ -33,6 +32,13 @@ class Heights(Protocol):
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
+
+
+class Drawing(Protocol):
+    """How the pile's hfield is drawn: a scene's [stockpile] section says (docs/stockpile.md)."""
+
+    colour: tuple[float, float, float, float]  # rgba
+    base_depth: float  # m of the base box below the yard floor
 
 
 class Payload(Protocol):
@@ -52,6 +58,8 @@ class Edits:
         stockpile: a pile to stand in the world as an hfield named STOCKPILE (no contacts, no
             mass: the wheel's cut is computed on the heights, `bwr_twin.stockpile`), so that
             rays (`mj_ray`) measure it as a laser scanner would.
+        stockpile_drawing: how that pile is drawn; None: MuJoCo's default colour, and a base
+            one grid spacing deep (a pile only for rays to measure).
         timestep: the physics timestep in s; None keeps the file's.
         physics_only: delete every geom that has no contacts and meets no fluid (the visual
             ones), keeping the wind areas of MuJoCo's ellipsoid fluid model.
@@ -62,6 +70,7 @@ class Edits:
 
     payloads: Sequence[Payload] = ()
     stockpile: Heights | None = None
+    stockpile_drawing: Drawing | None = None
     timestep: float | None = None
     physics_only: bool = False
     rigid_body_only: bool = False
@@ -98,7 +107,7 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
                 explicitinertial=True,
             )
         if edits.stockpile is not None:
-            _add_stockpile(spec, edits.stockpile)
+            _add_stockpile(spec, edits.stockpile, edits.stockpile_drawing)
         if edits.timestep is not None:
             spec.option.timestep = edits.timestep
         if edits.rigid_body_only:
@@ -113,17 +122,18 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
 
 
-def _add_stockpile(spec: mujoco.MjSpec, pile: Heights) -> None:
+def _add_stockpile(spec: mujoco.MjSpec, pile: Heights, drawing: Drawing | None) -> None:
     """The pile as an hfield geom on the world body: row 0 of its data lies at the lowest Y."""
     top = max(float(pile.z.max()), 1e-3)
+    base = drawing.base_depth if drawing is not None else float(pile.x[1] - pile.x[0])  # MuJoCo needs one
     spec.add_hfield(
         name=STOCKPILE,
         nrow=len(pile.y),
         ncol=len(pile.x),
-        size=[(pile.x[-1] - pile.x[0]) / 2, (pile.y[-1] - pile.y[0]) / 2, top, _STOCKPILE_BASE],
+        size=[(pile.x[-1] - pile.x[0]) / 2, (pile.y[-1] - pile.y[0]) / 2, top, base],
         userdata=(pile.z / top).ravel().tolist(),
     )
-    spec.worldbody.add_geom(
+    geom = spec.worldbody.add_geom(
         name=STOCKPILE,
         type=mujoco.mjtGeom.mjGEOM_HFIELD,
         hfieldname=STOCKPILE,
@@ -131,8 +141,9 @@ def _add_stockpile(spec: mujoco.MjSpec, pile: Heights) -> None:
         contype=0,
         conaffinity=0,
         group=1,
-        rgba=[0.55, 0.27, 0.15, 1.0],
     )
+    if drawing is not None:
+        geom.rgba = list(drawing.colour)
 
 
 def set_stockpile_heights(model: mujoco.MjModel, z: np.ndarray) -> None:
