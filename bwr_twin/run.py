@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import exit_status
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
@@ -32,7 +33,7 @@ def scene_overrides(model: str | None = None, seed: int | None = None) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.run", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.run", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. paper_individual_gains")
     parser.add_argument("--out", required=True, type=Path, help="output directory (must not exist)")
     parser.add_argument("--model", help="machine MJCF replacing the scene's (and the controller's belief, "

@@ -26,7 +26,6 @@ run, 2 bad input or DIR in use (nothing run), 130 interrupted.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import fcntl
 import json
@@ -45,6 +44,7 @@ from tqdm import tqdm
 from bwr_twin.batch.engines import ERROR_FILE, DaskCluster, LocalPool, Outcome
 from bwr_twin.batch.report import PLOTS_DIR, SUMMARY_FILE, RunRecord, spread_table, write_plots, write_summary
 from bwr_twin.config.sweep import MAX_RUNS, PlannedRun, Sweep, load_sweep
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.results.ownership import BATCH_LOCK_FILE, check_output, mark, marker
 from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, publish_directory, staged_directory
@@ -260,7 +260,7 @@ def _progress_bar(total: int, sweep: Sweep) -> tqdm:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.batch", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.batch", description=__doc__.split("\n\n")[0])
     parser.add_argument("sweep", help="sweep TOML file, or a shipped sweep's name, e.g. sweeps/paper_monte_carlo")
     parser.add_argument("--out", required=True, type=Path, help="output directory; re-running resumes it")
     engine = parser.add_mutually_exclusive_group()

@@ -21,12 +21,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError, exit_status
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.compare", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.compare", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="scene giving the path and disturbances (a file or a shipped name)")
     parser.add_argument("--controllers", nargs="+", required=True, metavar="SCENE",
                         help="scenes whose [controller] tables are compared (at least two)")

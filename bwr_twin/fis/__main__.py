@@ -20,6 +20,7 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import SceneError, exit_status
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
@@ -27,7 +28,7 @@ PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (0 done, 2 bad input, 130 interrupted)."""
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.fis", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.fis", description=__doc__.split("\n\n")[0])
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     evaluate = commands.add_parser("evaluate", help="print the outputs for one row of inputs, as evalfis")

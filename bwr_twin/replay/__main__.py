@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.exposure import exposure_warning
 from bwr_twin.replay.recording import Plan, Recording
@@ -48,7 +49,7 @@ SIGNAL_CHECK = 0.25  # s between the main thread's looks for a signal
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.replay", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.replay", description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "source",
         nargs="?",

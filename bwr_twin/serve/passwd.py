@@ -8,16 +8,16 @@ Asks for the password (twice on a terminal; one line of stdin otherwise) and pri
 
 from __future__ import annotations
 
-import argparse
 import getpass
 import sys
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError, exit_status
 from bwr_twin.serve.security import hash_password
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.serve.passwd", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.serve.passwd", description=__doc__.split("\n\n")[0])
     parser.add_argument("name", help="user name (no ':')")
     args = parser.parse_args(argv)
     return exit_status(lambda: _line(args.name))

@@ -15,7 +15,6 @@ Exit status: 0 done, 2 bad input (nothing run), 130 interrupted (run the same co
 
 from __future__ import annotations
 
-import argparse
 import os
 import signal
 import sys
@@ -23,12 +22,13 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.tune", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.tune", description=__doc__.split("\n\n")[0])
     parser.add_argument("tuning", help="tuning TOML file, or a shipped one's name, e.g. tuning/paper_gains")
     parser.add_argument("--out", required=True, type=Path, help="output directory; re-running resumes it")
     engine = parser.add_mutually_exclusive_group()
