@@ -32,6 +32,7 @@ from bwr_twin.config.plugins import (
     rate_control_class,
 )
 from bwr_twin.errors import SceneError
+from bwr_twin.textfile import read_text
 from bwr_twin.values import is_integer, is_number
 
 Vec3 = tuple[float, float, float]
@@ -293,7 +294,7 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
         by = f" (extended by {extended_by[-1]})" if extended_by else ""
         raise SceneError(f"{path}: scene file not found{by}")
     try:
-        raw = tomllib.loads(path.read_text())
+        raw = tomllib.loads(read_text(path))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None
     except UnicodeDecodeError:

@@ -45,6 +45,7 @@ from bwr_twin.config.scene import Scene, load_scene
 from bwr_twin.config.sweep import axis_components, lookup, scene_overrides
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
+from bwr_twin.textfile import read_text
 from bwr_twin.values import is_integer, is_number
 
 if sys.version_info >= (3, 11):
@@ -125,7 +126,7 @@ def load_tuning(path: str | Path) -> Tuning:
     if not path.is_file():
         raise SceneError(f"{path}: tuning file not found")
     try:
-        text = path.read_text()
+        text = read_text(path)
         raw = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None

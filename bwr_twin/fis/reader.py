@@ -18,6 +18,7 @@ from pathlib import Path
 
 from bwr_twin.errors import SceneError
 from bwr_twin.fis.system import METHODS, FuzzySystem, MembershipFunction, Rule, Variable, check
+from bwr_twin.textfile import decode
 
 _NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _NUMBER_RE = re.compile(_NUMBER)
@@ -51,10 +52,10 @@ def read_fis(path: str | Path) -> FuzzySystem:
     except OSError as exc:
         raise SceneError(f"{path}: cannot read the .fis file: {exc.strerror}") from None
     try:
-        text = data.decode("utf-8")
+        text = decode(data)
     except UnicodeDecodeError:
         # MATLAB on Windows writes names in the system code page; latin-1 reads any byte.
-        text = data.decode("latin-1")
+        text = data.decode("latin-1").replace("\r\n", "\n")
     return parse_fis(text, path)
 
 
