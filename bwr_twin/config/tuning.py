@@ -2,7 +2,7 @@
 
     scene = "../paper_individual_gains.toml"          # the base scene, relative to this file
 
-    [parameters]                                      # any scene key; an axis of a per-axis list
+    [parameters]                                      # a number of the scene; an axis of a per-axis list
     "controller.output_gain.travel" = { low = 0.002, high = 0.2, scale = "log" }
     "controller.input_scale_e" = { low = 10.0, high = 200.0 }    # scale: "linear" (the default)
 
@@ -29,6 +29,11 @@
     sigma0 = 0.25                                     # initial step, as a share of each parameter's range
     seed = 1                                          # CMA-ES's random numbers
 
+A parameter must be a number the base scene gives a value (not an integer, a string or a file),
+and not one of NOT_TUNABLE (the loop's timing and seed, when a reclaim stops, how the pile is
+sampled or drawn); each bound, the others at the start, must make a valid scene. One parameter
+is searched by a bounded scalar search (bwr_twin.tune.scalar), two or more by CMA-ES.
+
 Every problem gets one SceneError line naming the file and the key.
 """
 
@@ -42,7 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from bwr_twin.config.scene import Scene, load_scene
-from bwr_twin.config.sweep import axis_components, lookup, scene_overrides
+from bwr_twin.config.sweep import axis_components, scene_overrides
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
 from bwr_twin.textfile import read_text
@@ -200,13 +205,15 @@ def load_tuning(path: str | Path) -> Tuning:
     seed = optimizer.get("seed", 1)
     if not (is_integer(seed) and seed >= 1):
         raise fail("optimizer.seed", f"must be an integer >= 1, got {seed!r}")
-    return Tuning(
+    tuning = Tuning(
         path=path, digest=hashlib.sha256(text.encode()).hexdigest(), base=base,
         parameters=parameters, start=start, training_seeds=training, held_out_seeds=held_out,
         objective=objective, max_saturation=saturation, max_drive_rms=tuple(drive_rms) if drive_rms else None,
         limits_allowed=limits, evaluations=evaluations, wall_time=wall_time, population=population,
         sigma0=float(sigma0), seed=seed,
     )
+    _check_bounds(parameters, tuning, fail)
+    return tuning
 
 
 def _parameters(table: Any, base: Scene, fail) -> tuple[tuple[Parameter, ...], tuple[float, ...]]:
@@ -226,19 +233,101 @@ def _parameters(table: Any, base: Scene, fail) -> tuple[tuple[Parameter, ...], t
             raise fail(f"{where}.scale", f"must be \"linear\" or \"log\", got {scale!r}")
         if scale == "log" and low <= 0:
             raise fail(where, f"a log scale needs low > 0, got {low}")
-        if key in components:
-            parent, axis = components[key]
-            value = lookup(base_dict, parent)[axis]
-        else:
-            value = lookup(base_dict, key)
-        if not is_number(value):
-            raise fail(where, f"is not a number in the base scene ({value!r}); tune a number, or an axis "
-                       f"of a per-axis list ({', '.join(AXES)})")
+        value = _tunable_value(key, components, base_dict, where, fail)
         if not low <= value <= high:
             raise fail(where, f"starts at the base scene's {value:g}, outside [{low:g}, {high:g}]")
         parameters.append(Parameter(key, float(low), float(high), scale == "log"))
         start.append(float(value))
     return tuple(parameters), tuple(start)
+
+
+# Scene keys that are numbers but no setting to tune: what they change is not the controller,
+# the plant or the world, or it changes the run that the candidates are compared on.
+NOT_TUNABLE = {
+    "simulation": "sets the loop's timing and the seed, not the controller or the plant",
+    "reclaim.stop": "decides when a run ends: the candidates would be scored on different runs",
+    "stockpile.grid_spacing": "is how finely the pile is sampled, not the pile",
+    "stockpile.colour": "only changes how the pile is drawn",
+    "stockpile.base_depth": "only changes how the pile is drawn",
+}
+_MISSING = object()
+
+
+def _tunable_value(key: str, components: dict, base: dict, where: str, fail) -> float:
+    """The base scene's value of a tuned key, or a one-line refusal saying why it cannot be tuned."""
+    for prefix, why in NOT_TUNABLE.items():
+        if key == prefix or key.startswith(prefix + "."):
+            raise fail(where, f"cannot be tuned: '{prefix}' {why}")
+    if key in components:
+        parent, axis = components[key]
+        return float(_find(base, parent)[axis])
+    value = _find(base, key)
+    parent, _, last = key.rpartition(".")
+    if value is _MISSING and _is_axes(_find(base, parent)):
+        raise fail(where, f"names no axis of the per-axis list '{parent}': tune {_axes_of(parent)}")
+    if value is _MISSING:
+        raise fail(where, f"names no key of the base scene; its numbers that can be tuned: "
+                   f"{', '.join(tunable_keys(base))}")
+    if value is None:
+        raise fail(where, "has no value in the base scene (the model's is used); give it one there to tune it")
+    if _is_axes(value):
+        raise fail(where, f"is a per-axis list: tune its axes one by one, {_axes_of(key)}")
+    if isinstance(value, float) and is_number(value):
+        return value
+    kind = "an integer setting" if is_integer(value) else f"not a number ({value!r})"
+    raise fail(where, f"is {kind} in the base scene; tune a number, or one axis of a per-axis list")
+
+
+def tunable_keys(base: dict) -> list[str]:
+    """The dotted keys of the base scene's numbers (scene.to_dict()) that a tuning may name."""
+    keys = []
+
+    def walk(table: dict, prefix: str) -> None:
+        for name, value in table.items():
+            key = f"{prefix}{name}"
+            if any(key == p or key.startswith(p + ".") for p in NOT_TUNABLE):
+                continue
+            if isinstance(value, dict):
+                walk(value, key + ".")
+            elif _is_axes(value):
+                keys.extend(f"{key}.{axis}" for axis in AXES)
+            elif isinstance(value, float):
+                keys.append(key)
+
+    walk({k: v for k, v in base.items() if k not in ("path", "trajectory")}, "")
+    return keys
+
+
+def _find(table: Any, dotted: str) -> Any:
+    """The value at a dotted key, None where the scene leaves it unset, _MISSING where it has none."""
+    for name in dotted.split("."):
+        if not isinstance(table, dict) or name not in table:
+            return _MISSING
+        table = table[name]
+    return table
+
+
+def _is_axes(value: Any) -> bool:
+    return isinstance(value, list) and len(value) == len(AXES) and all(isinstance(v, float) for v in value)
+
+
+def _axes_of(key: str) -> str:
+    return ", ".join(f"{key}.{axis}" for axis in AXES)
+
+
+def _check_bounds(parameters: tuple[Parameter, ...], tuning: Tuning, fail) -> None:
+    """Each parameter at its low and at its high bound, the others at the start, must make a valid
+    scene: a rule broken there is refused now, not after generations of work."""
+    for i, parameter in enumerate(parameters):
+        for bound in (parameter.low, parameter.high):
+            values = list(tuning.start)
+            values[i] = bound
+            try:
+                tuning.scene(values, tuning.base.simulation.seed)
+            except SceneError as exc:
+                why = str(exc).removeprefix(f"{tuning.path}: ").removeprefix(f"{tuning.base.path}: ")
+                raise fail(f"parameters.{parameter.key}", f"at its bound {bound:g} makes a scene that breaks "
+                           f"a rule ({why}); narrow the bounds") from None
 
 
 def _seed_list(value: Any, key: str, fail) -> tuple[int, ...]:

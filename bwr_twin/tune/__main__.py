@@ -1,10 +1,13 @@
-"""Tune any scene keys with CMA-ES, on local workers or a Dask cluster, resumably.
+"""Tune any scene keys with CMA-ES (one key: a bounded scalar search), on local workers or a Dask
+cluster, resumably.
 
     python -m bwr_twin.tune tuning/paper_gains --out out/tune
-    python -m bwr_twin.tune TUNE.toml --out DIR [--workers N | --scheduler tcp://HOST:PORT]
+    python -m bwr_twin.tune TUNE.toml --out DIR [--workers N | --scheduler tcp://HOST:PORT] [--force]
 
 TUNE is a tuning file (bwr_twin.config.tuning), or the name of a shipped one (scenes/).
-The start point (the base scene) is evaluated first: it sets each metric's normaliser. Then
+Before anything runs, the whole budget is estimated (evaluations x training seeds, and the
+held-out runs, at the base scene's cost) and refused beyond the bounds of bwr_twin.sim.budget
+unless --force. The start point (the base scene) is evaluated first: it sets each metric's normaliser. Then
 every generation's candidates run on the same training seeds as lockstep batches. After each
 generation DIR/tuner_state.pkl and DIR/history.csv are saved; the same command continues a
 tuning that was interrupted or killed from its last completed generation, and ends where an
@@ -25,6 +28,7 @@ from pathlib import Path
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
+from bwr_twin.sim.budget import FORCE_HELP
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,6 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     engine = parser.add_mutually_exclusive_group()
     engine.add_argument("--workers", type=int, help="local worker processes (default: one per core)")
     engine.add_argument("--scheduler", help="run on a Dask cluster, e.g. tcp://10.0.0.5:8786")
+    parser.add_argument("--force", action="store_true", help=FORCE_HELP)
     args = parser.parse_args(argv)
     if args.workers is not None and args.workers < 1:
         parser.error("--workers must be at least 1")
@@ -42,11 +47,17 @@ def main(argv: list[str] | None = None) -> int:
     from bwr_twin.config.tuning import load_tuning
     from bwr_twin.results.ownership import check_output, mark, marker
     from bwr_twin.shipped import find_scene
+    from bwr_twin.sim.budget import check_estimate
+    from bwr_twin.tune.cost import budget_estimate
 
     created = not args.out.exists()
     try:
         tuning = load_tuning(find_scene(args.tuning))
         check_output(args.out, "tuning", inputs={tuning.path, *tuning.base.input_files})
+        workers = 1 if args.scheduler else args.workers or os.cpu_count() or 1
+        check_estimate(budget_estimate(tuning, workers), where=f"{tuning.path}: 'budget.evaluations' ({tuning.evaluations}) x "
+                       f"{len(tuning.training_seeds)} training seeds",
+                       out_dir=args.out, force=args.force)
         found = marker(args.out) if args.out.exists() else None
         if found is not None and found.get("tuning") != tuning.digest:
             raise BwrError(f"{args.out}: holds a tuning by another tuning file ({found.get('file')}) or an "
@@ -74,7 +85,6 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def _tune(tuning, out: Path, *, workers: int | None, scheduler: str | None) -> int:
-    import cma
     from tqdm import tqdm
 
     from bwr_twin.batch.cli import remove_debris
@@ -92,11 +102,7 @@ def _tune(tuning, out: Path, *, workers: int | None, scheduler: str | None) -> i
             metrics = _evaluate(engine, tuning, [tuning.start], tuning.training_seeds)[0]
             if any(m is None for m in metrics):
                 raise BwrError(f"{tuning.path}: the base scene's runs fail on the training seeds; nothing to tune")
-            options = {"bounds": [0.0, 1.0], "seed": tuning.seed, "verbose": -9, "verb_log": 0, "verb_disp": 0}
-            if tuning.population:
-                options["popsize"] = tuning.population
-            x0 = [p.to_unit(v) for p, v in zip(tuning.parameters, tuning.start)]
-            state = TunerState(cma.CMAEvolutionStrategy(x0, tuning.sigma0, options), axis_means(tuning, metrics))
+            state = TunerState(_strategy(tuning), axis_means(tuning, metrics))
             start = score(tuning, metrics, state.normalisers)
             state.history.append(_row(tuning, 0, 0, tuning.start, start))
             if start.feasible:
@@ -141,13 +147,31 @@ def _tune(tuning, out: Path, *, workers: int | None, scheduler: str | None) -> i
     return 0
 
 
+def _strategy(tuning):
+    """CMA-ES over the parameters mapped to [0, 1]; for one parameter, which CMA-ES cannot search
+    (it needs two dimensions), a bounded scalar search in the same ask-and-tell shape."""
+    x0 = [p.to_unit(v) for p, v in zip(tuning.parameters, tuning.start)]
+    if len(x0) == 1:
+        from bwr_twin.tune.scalar import DEFAULT_POPULATION, ScalarSearch
+
+        return ScalarSearch(x0[0], tuning.population or DEFAULT_POPULATION)
+    import cma
+
+    options = {"bounds": [0.0, 1.0], "seed": tuning.seed, "verbose": -9, "verb_log": 0, "verb_disp": 0}
+    if tuning.population:
+        options["popsize"] = tuning.population
+    return cma.CMAEvolutionStrategy(x0, tuning.sigma0, options)
+
+
 def _stop_reason(tuning, state, population: int, running: float) -> str:
+    from bwr_twin.tune.scalar import search_name
+
     if state.evaluations + population > tuning.evaluations:
         return f"budget of {tuning.evaluations} evaluations"
     if tuning.wall_time is not None and state.elapsed + running >= tuning.wall_time:
         return f"wall-time budget of {tuning.wall_time:g} s"
     stop = state.strategy.stop()
-    return f"CMA-ES converged ({', '.join(stop)})" if stop else ""
+    return f"{search_name(len(tuning.parameters))} converged ({', '.join(stop)})" if stop else ""
 
 
 def _evaluate(engine, tuning, candidates: Sequence[Sequence[float]], seeds: Sequence[int]) -> list[list[dict | None]]:

@@ -16,6 +16,7 @@ from bwr_twin.config.scene_toml import scene_toml
 from bwr_twin.config.tuning import Tuning
 from bwr_twin.model.machine import AXES, UNITS, to_display
 from bwr_twin.results.rundir import write_atomically
+from bwr_twin.tune.scalar import search_name
 
 HELD_OUT_METRICS = ("position_error_max", "position_error_rms", "velocity_error_max", "drive_force_rms")
 
@@ -24,7 +25,7 @@ def write_best_scene(folder: Path, tuning: Tuning, values: Sequence[float], obje
                      evaluations: int, stopped: str) -> None:
     scene = tuning.scene(values, tuning.base.simulation.seed)
     header = (f"Found by python -m bwr_twin.tune {tuning.path} on {datetime.date.today().isoformat()}:\n"
-              f"CMA-ES over {', '.join(p.key for p in tuning.parameters)},\n"
+              f"{search_name(len(tuning.parameters))} over {', '.join(p.key for p in tuning.parameters)},\n"
               f"{evaluations} evaluations on training seeds {list(tuning.training_seeds)} ({stopped}); objective "
               f"{objective:.4g}\n(the start scores the sum of the weights; {', '.join(f'{w:g} x {m}' for m, w in tuning.objective.items())},"
               f" each normalised per axis by its value at the start).\n"

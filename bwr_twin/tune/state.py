@@ -21,7 +21,7 @@ STATE_FILE = "tuner_state.pkl"
 
 @dataclass
 class TunerState:
-    strategy: Any  # cma.CMAEvolutionStrategy
+    strategy: Any  # cma.CMAEvolutionStrategy, or a ScalarSearch for one parameter
     normalisers: dict[str, list[float]]  # metric -> per-axis value at the start
     generation: int = 0  # completed generations (0: the start point alone)
     evaluations: int = 0  # candidates evaluated, the start point included
@@ -38,11 +38,16 @@ class TunerState:
     @classmethod
     def load(cls, folder: Path) -> TunerState | None:
         """The saved state, with numpy's generator put back as it was; None if there is none."""
-        try:
-            state = pickle.loads((folder / STATE_FILE).read_bytes())
-        except FileNotFoundError:
+        path = folder / STATE_FILE
+        if not path.exists():
             return None
-        except (pickle.UnpicklingError, EOFError, AttributeError, ImportError) as exc:
-            raise BwrError(f"{folder / STATE_FILE}: unreadable ({exc}); remove it to start the tuning afresh") from None
-        np.random.set_state(state.random_state)
+        try:
+            state = pickle.loads(path.read_bytes())
+            if not isinstance(state, TunerState):
+                raise TypeError(f"it holds a {type(state).__name__}, not a tuner's state")
+            np.random.set_state(state.random_state)
+        except Exception as exc:  # unpickling damaged bytes may raise any exception
+            why = exc.strerror if isinstance(exc, OSError) else str(exc) or type(exc).__name__
+            raise BwrError(f"{path}: damaged, not a state this tuner saved ({why}); remove it to start the "
+                           "tuning afresh, or choose another --out") from None
         return state
