@@ -9,8 +9,9 @@ in one period and the rate would be a train of spikes a cell apart; with flanks 
 wide, cells are lowered a little each period, and the same material is cut, a little earlier.
 The heights only ever fall, so the volume the pile loses is exactly the sum of the volumes cut.
 
-The cut runs every control period for every run, so it is compiled (numba, cached next to this
-module): one call visits, for each run, only the cells near its wheel.
+The cut runs every control period for every run, so it is compiled with numba: one call visits,
+for each run, only the cells near its wheel. Numba caches the machine code beside this module,
+or in the user's cache directory if the package is read-only (or where NUMBA_CACHE_DIR says).
 """
 
 from __future__ import annotations
