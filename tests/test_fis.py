@@ -587,7 +587,8 @@ def test_cli_convert_round_trip(tmp_path):
     done = run_cli("convert", toml.name, "paper.fis", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     fis = (tmp_path / "paper.fis").read_text()
-    assert fis.startswith("% Converted by `python -m bwr_twin.fis convert` from paper_table2.toml.\n")
+    assert fis.startswith("% written by bwr_twin.fis\n% Converted by `python -m bwr_twin.fis convert` from "
+                          "paper_table2.toml.\n")
     done = run_cli("convert", "paper.fis", "back.toml", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "paper.fis -> back.toml: 2 inputs, 1 output, 49 rules" in done.stdout

@@ -6,8 +6,9 @@
     python -m bwr_twin.fis surface tests/assets/tipper.fis --out tipper.png
 
 FILE may also be a TOML rule base (by its suffix). Outputs are written atomically and never over
-the input; an existing OUT is replaced only with --overwrite, and only if bwr_twin.fis wrote it. A bad file exits with status 2 and one line on
-stderr, 'error: FILE:LINE: what is wrong (the limit)'; nothing is written.
+the input; an existing OUT is replaced only with --overwrite, and only if bwr_twin.fis wrote it
+(its first line, or a picture's metadata, says so: bwr_twin.results.ownership). A bad file exits
+with status 2 and one line on stderr, 'error: FILE:LINE: what is wrong (the limit)'; nothing is written.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import SceneError, exit_status
+from bwr_twin.results.ownership import picture_metadata, text_mark, written_by
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -105,7 +107,7 @@ def _convert(source: Path, out: Path, overwrite: bool) -> None:
         raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(SUFFIXES)})")
     _check_destination(source, out, overwrite)
     system = load_system(source)
-    text = output_text(system, out, str(source))
+    text = f"{text_mark(WRITER, out.suffix)}\n{output_text(system, out, str(source))}"
     expected = fis_to_rulebase(system).digest() if out.suffix.lower() == ".toml" else None
 
     def write(temporary: Path) -> None:
@@ -140,12 +142,12 @@ def _surface(path: Path, out: Path, overwrite: bool, output: int, grid: int, poi
     figure = surface_figure(system, output=output, grid=grid, points=points)
     # The format is named because the temporary file's suffix is not the picture's.
     kind = out.suffix.lower()[1:]
-    metadata = {"Software" if kind == "png" else "Creator": WRITTEN_BY.decode()}  # what --overwrite looks for
+    metadata = picture_metadata(WRITER, out.suffix)  # what --overwrite looks for
     _write(out, lambda temporary: figure.savefig(temporary, format=kind, dpi=110, metadata=metadata))
     print(f"{out}: control surface of {system.name!r}, output {output} {system.outputs[output - 1].name!r}")
 
 
-WRITTEN_BY = b"bwr_twin.fis"  # in every file convert and surface write: the comment, the picture's metadata
+WRITER = "bwr_twin.fis"  # the mark of every file convert and surface write (bwr_twin.results.ownership)
 
 
 def _count(n: int, noun: str) -> str:
@@ -168,7 +170,7 @@ def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
             raise SceneError(f"{out}: is a directory; name a file")
         if not overwrite:
             raise SceneError(f"{out}: already exists; choose another output or pass --overwrite")
-        if WRITTEN_BY not in out.read_bytes():  # the twin replaces only what it wrote
+        if not written_by(out, WRITER):  # the twin replaces only what it wrote
             raise SceneError(f"{out}: exists and was not written by bwr_twin.fis; it is left alone, "
                              "choose another output")
     elif not out.parent.is_dir():

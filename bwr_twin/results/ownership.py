@@ -1,14 +1,22 @@
 """What the twin may replace: only what it wrote itself, never an input of the same command.
 
 Every directory the twin writes (a run, a batch) holds a marker file, `.bwr_twin`, saying what
-it is; every HTML export carries a generator tag. `check_output` is asked before any work starts
-and again just before anything is replaced, so that a refusal costs nothing and loses nothing.
+it is. Every file it writes carries its writer's mark in one fixed place and form, which a file
+the twin did not write does not hold by chance (`written_by`): the first line of a .fis or .toml
+is exactly `% written by WRITER` or `# written by WRITER`; a PNG has a text chunk `Software`
+of exactly WRITER; an SVG's leading metadata has WRITER as its creator, a PDF's document
+information as its Creator; an HTML export's <head> opens with the generator tag. Text that
+merely mentions the writer anywhere else does not count. `check_output` is asked before any work
+starts and again just before anything is replaced, so that a refusal costs nothing and loses
+nothing.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
+import struct
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -17,8 +25,72 @@ from bwr_twin.errors import BwrError
 MARKER_FILE = ".bwr_twin"
 RESUMABLE = ("batch", "tuning")  # kinds of output that the same command continues rather than replaces
 BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
-HTML_TAG = '<meta name="generator" content="bwr_twin.replay">'
-_HTML_TAG_WITHIN = 4096  # bytes from the start of an export where its tag sits
+HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an HTML file's <head>
+HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
+_HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
+COMMENT_SIGNS = {".fis": "%", ".toml": "#"}  # the text files the twin writes, by suffix
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def text_mark(writer: str, suffix: str) -> str:
+    """The first line of a text file `writer` writes, without its line end."""
+    return f"{COMMENT_SIGNS[suffix.lower()]} written by {writer}"
+
+
+def picture_metadata(writer: str, suffix: str) -> dict[str, str]:
+    """Matplotlib's savefig metadata that marks a picture as `writer`'s."""
+    return {"Software" if suffix.lower() == ".png" else "Creator": writer}
+
+
+def written_by(path: Path, writer: str) -> bool:
+    """Whether the file `path` holds `writer`'s mark in its place (see the module's docstring)."""
+    suffix = path.suffix.lower()
+    try:
+        with path.open("rb") as f:
+            data = f.read() if suffix == ".pdf" else f.read(_HEAD_WITHIN)
+    except OSError:
+        return False
+    if suffix in COMMENT_SIGNS:
+        first = data.split(b"\n", 1)[0].removeprefix(b"\xef\xbb\xbf").rstrip(b"\r")
+        return first == text_mark(writer, suffix).encode()
+    if suffix == ".png":
+        return _png_text(data).get(b"Software") == writer.encode()
+    if suffix == ".svg":
+        return re.match(rb"<\?xml[^>]*\?>\s*(?:<!DOCTYPE[^>]*>\s*)?<svg[^>]*>\s*<metadata>(?:(?!</metadata>).)*?"
+                        rb"<dc:creator>\s*<cc:Agent>\s*<dc:title>" + re.escape(writer.encode()) + rb"</dc:title>",
+                        data, re.DOTALL) is not None
+    if suffix == ".pdf":
+        return _pdf_creator(data) == writer.encode()
+    if suffix == ".html":
+        head = data.find(b"<head>")
+        return head >= 0 and data.startswith(HTML_GENERATOR.format(writer).encode(), head + len(b"<head>"))
+    return False
+
+
+def _png_text(data: bytes) -> dict[bytes, bytes]:
+    """The tEXt chunks before the image data of a PNG's first bytes: keyword -> text."""
+    found, at = {}, len(_PNG_SIGNATURE)
+    if not data.startswith(_PNG_SIGNATURE):
+        return found
+    while at + 8 <= len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        if kind == b"IDAT":
+            break
+        if kind == b"tEXt":
+            keyword, _, text = data[at + 8:at + 8 + length].partition(b"\0")
+            found[keyword] = text
+        at += 12 + length  # length, type, data, CRC
+    return found
+
+
+def _pdf_creator(data: bytes) -> bytes | None:
+    """The Creator of a PDF's document information, the object its last trailer names as /Info."""
+    trailer = re.search(rb"trailer\s*<<[^>]*/Info (\d+) 0 R[^>]*>>\s*startxref\s*\d+\s*%%EOF\s*$", data[-1024:])
+    if not data.startswith(b"%PDF-") or trailer is None:
+        return None
+    info = re.search(rb"(?:^|\n)" + trailer[1] + rb" 0 obj\s*<<(.*?)>>\s*endobj", data, re.DOTALL)
+    creator = re.search(rb"/Creator \(([^)]*)\)", info[1]) if info else None
+    return creator[1] if creator else None
 
 
 def mark(folder: Path, kind: str, **details: object) -> None:
@@ -71,9 +143,7 @@ def _check_export(path: Path, option: str) -> None:
     if not path.parent.is_dir():
         raise BwrError(f"{path}: the folder {path.parent} does not exist")
     if path.exists():
-        with path.open("rb") as f:
-            own = HTML_TAG.encode() in f.read(_HTML_TAG_WITHIN)
-        if not own:
+        if not written_by(path, "bwr_twin.replay"):
             raise BwrError(f"{path}: exists and was not exported by the twin; it is left alone, "
                            f"choose another {option}")
 
