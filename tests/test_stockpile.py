@@ -18,6 +18,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_heights
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 from bwr_twin.stockpile.cutting import Cutter
+from bwr_twin.stockpile.digging import jacobian_transpose
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.surface import Surface, build_surface
 
@@ -140,6 +141,27 @@ def test_the_digging_load_resists_the_slewing_within_the_wheel_drive(short_dig):
     assert np.all(short_dig.qd_desired[cutting, 1] > 0)  # slewing into the windrow, or lifting out
     assert np.median(short_dig.disturbance[cutting, 1]) < -1e6  # N m against the slewing; the random part is +-0.12 MN m
     assert short_dig.metrics["reclaim"]["digging_force_max_N"] <= 1.0e6 / machine_rim_speed() * 1.1
+
+
+@pytest.mark.parametrize("mjcf", [HEAVY_MJCF, VARIANT_MJCF])
+def test_the_digging_load_on_the_joints_is_mujocos_jacobian_transposed(mjcf):
+    """J^T F of a world force at a point fixed to the boom, as the load applies it, equals
+    MuJoCo's own Jacobian of that point (mj_jac on the CP's body), at random joint values."""
+    machine = Machine(mjcf)
+    model, data, g = machine.model, mujoco.MjData(machine.model), machine.geometry
+    body = model.site_bodyid[machine.cp_site]
+    rng = np.random.default_rng(3)
+    jacp = np.zeros((3, model.nv))
+    for _ in range(20):
+        data.qpos[:] = rng.uniform(machine.envelope[:, 0], machine.envelope[:, 1])
+        mujoco.mj_forward(model, data)
+        point = data.site_xpos[machine.cp_site] + rng.uniform(-3, 3, 3)  # about where a wheel cuts
+        force = rng.uniform(-1e5, 1e5, 3)
+        mujoco.mj_jac(model, data, jacp, None, point, body)
+        q = data.qpos
+        ours = jacobian_transpose(q[0], np.cos(q[1]), np.sin(q[1]), *point, *force, *g.slew_axis_xy,
+                                  g.pivot_reach, g.pivot_height)
+        np.testing.assert_allclose(ours, jacp.T @ force, rtol=1e-9, atol=1e-6)
 
 
 def machine_rim_speed() -> float:

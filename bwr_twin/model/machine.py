@@ -97,6 +97,11 @@ class Wheel:
         return self.discharges_per_minute * self.bucket_volume / 60.0
 
     @property
+    def bucket_interval(self) -> float:
+        """s between two discharges: each bucket's time in the cut."""
+        return 60.0 / self.discharges_per_minute
+
+    @property
     def rim_speed(self) -> float:
         """Speed of the bucket lips, m/s."""
         return np.pi * self.diameter * self.discharges_per_minute / self.buckets / 60.0
@@ -317,22 +322,6 @@ class Machine:
             ],
             axis=-1,
         )
-
-    def joint_force(self, q: np.ndarray, point: np.ndarray, force: np.ndarray) -> np.ndarray:
-        """J^T F: the (runs, 3) joint forces (N, N m) of world forces `force` (runs, 3) (N) acting
-        at world points `point` (runs, 3) (m) fixed to the boom, at joint values q (runs, 3)."""
-        g = self.geometry
-        cos, sin = np.cos(q[:, 1]), np.sin(q[:, 1])
-        arm_x = point[:, 0] - (q[:, 0] + g.slew_axis_xy[0])  # from the slew axis
-        arm_y = point[:, 1] - g.slew_axis_xy[1]
-        rx, ry = arm_x - g.pivot_reach * cos, arm_y - g.pivot_reach * sin  # from the luff pivot
-        rz = point[:, 2] - g.pivot_height
-        out = np.empty_like(force)
-        out[:, 0] = force[:, 0]
-        out[:, 1] = arm_x * force[:, 1] - arm_y * force[:, 0]  # (Z x arm) . F
-        # ((sin, -cos, 0) x r) . F: the luff axis is world -Y turned by the slew.
-        out[:, 2] = -cos * rz * force[:, 0] - sin * rz * force[:, 1] + (sin * ry + cos * rx) * force[:, 2]
-        return out
 
     def ik(self, p: np.ndarray, *, label: str = "target", check_envelope: bool = True) -> np.ndarray:
         """Joint values (travel, slew, luff) that put the CP at world point p (m).

@@ -97,7 +97,7 @@ async def serve(scene: Scene, options: Options) -> int:
 
 def _mode_line(clock: Clock) -> str:
     twin = clock.twin
-    most = " at most" if twin.loop.plan is not None else ""  # a bench plan ends when it is done
+    most = " at most" if not twin.loop.tracking.shared else ""  # a bench plan ends when it is done
     path = f"{twin.samples} control periods{most} of {twin.period * 1e3:g} ms ({twin.loop.duration:g} s)"
     if clock.mode == LOCKSTEP:
         return f"lockstep: Step(n) advances the twin n control periods; {path}"

@@ -176,7 +176,7 @@ class Lockstep:
         self.reclaim = None
         if surface is not None:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
-            self.reclaim = Reclaim(scenes, machine, surface, period, frame_every, plan=tracking.plan)
+            self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
         self._observe = observe
         self._observer = observer = Observer(
             runs, self.samples, period, round(sim.record_period / period), machine,
@@ -245,7 +245,7 @@ class Lockstep:
         phase = tracking.phase()
         reclaim = self.reclaim
         if reclaim is not None:
-            load = reclaim.step(k, row.q, plant.alive, phase)
+            load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
                 disturbance += load
             for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
@@ -277,6 +277,7 @@ class Lockstep:
         if k == self.samples:
             if reclaim is not None:
                 reclaim.finish(k - 1)
+                tracking.finish(reclaim)
             if self._observe:
                 observer.flush()
             plant.check_health()
@@ -297,7 +298,8 @@ class Lockstep:
                 continue
             run_metrics = metrics.result(run, self.time)
             if self.reclaim is not None:
-                run_metrics["reclaim"] = self.reclaim.metrics(run)
+                run_metrics["reclaim"] = {**self.reclaim.metrics(run),
+                                          **self.tracking.reclaim_metrics(run, float(self.reclaim.density[run]))}
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),

@@ -23,6 +23,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_scene
 from bwr_twin.planning.follower import BenchReference, PathReference, Phase
 from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.sim.outcome import PlanOutcome
 
 
 class PathTracking:
@@ -66,6 +67,12 @@ class PathTracking:
     def run_metrics(self, run: int) -> dict:
         return {}
 
+    def reclaim_metrics(self, run: int, density: float) -> dict:
+        return {}
+
+    def finish(self, reclaim) -> None:
+        pass
+
 
 class BenchTracking:
     """A bench plan, followed by every run on its own: (runs, 3) references.
@@ -95,6 +102,7 @@ class BenchTracking:
         )
         targets = np.array([s.reclaim.target_rate for s in scenes])
         self._rate_control = rate_control_class(control.type)(control, targets, period, wheel)
+        self.outcome = PlanOutcome(self.plan, targets, machine.wheel.bucket_interval, period)
 
     def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         r = self._reference
@@ -109,6 +117,7 @@ class BenchTracking:
         every run rests, the periods the lockstep takes in all (one more at rest, measured and
         recorded), else None."""
         reference = self._reference
+        self.outcome.add(k - 1, phase, reclaim)
         trim = self._rate_control.trim(RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting,
                                                    phase.steady))
         stop, stopping = self._stop, None
@@ -121,6 +130,14 @@ class BenchTracking:
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)
+
+    def reclaim_metrics(self, run: int, density: float) -> dict:
+        """How the run carried out its plan (bwr_twin.sim.outcome); `density` kg/m^3."""
+        return self.outcome.metrics(run, density)
+
+    def finish(self, reclaim) -> None:
+        """The runs' reclaim has ended: its last discharge counts to their last bench."""
+        self.outcome.discharged(reclaim.conveyor.discharged)
 
     def run_metrics(self, run: int) -> dict:
         """Where the run began each segment of its plan, for a replay."""
