@@ -165,7 +165,7 @@ def short_scene(tmp_path_factory):
 @pytest.fixture(scope="module")
 def users_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("users") / "users.txt"
-    path.write_text(f"# the PLC\n{USER}:{hash_password(PASSWORD, iterations=1000)}\n")
+    path.write_text(f"# the PLC\n{USER}:{hash_password(PASSWORD)}\n")  # the floor: 0.3-0.4 s a login
     return path
 
 
@@ -522,3 +522,126 @@ def test_a_bench_reclaim_is_served_with_the_plans_reference(tmp_path):
     # The PID over the wire carried travel and slew along with the reference.
     followed = (positions[-1] - positions[0])[:2] / (references[BENCH_PERIODS - 1] - references[0])[:2]
     assert ((followed > 0.5) & (followed < 1.5)).all(), followed
+
+
+# -- refused at start: users, certificates, endpoints -------------------------------------------
+
+def certificate_pair(folder, name: str, uri: str | None = "urn:bwr_twin:serve"):
+    """folder/NAME_cert.pem and folder/NAME_key.pem: a self-signed RSA certificate naming `uri`
+    in its subjectAltName (none if None), and its key."""
+    import datetime
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import rsa
+    from cryptography.x509.oid import NameOID
+
+    key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
+    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "bwr_twin")])
+    builder = (x509.CertificateBuilder().subject_name(subject).issuer_name(subject).public_key(key.public_key())
+               .serial_number(1).not_valid_before(datetime.datetime(2020, 1, 1))
+               .not_valid_after(datetime.datetime(2040, 1, 1)))
+    if uri is not None:
+        builder = builder.add_extension(x509.SubjectAlternativeName([x509.UniformResourceIdentifier(uri),
+                                                                     x509.DNSName("localhost")]), critical=False)
+    cert, key_file = folder / f"{name}_cert.pem", folder / f"{name}_key.pem"
+    cert.write_bytes(builder.sign(key, hashes.SHA256()).public_bytes(serialization.Encoding.PEM))
+    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert, key_file
+
+
+@pytest.fixture(scope="module")
+def credentials(tmp_path_factory):
+    """Users files with iterations out of bounds, and certificates: good, another's key, no URI."""
+    folder = tmp_path_factory.mktemp("credentials")
+    line = hash_password(PASSWORD, iterations=1)
+    files = {"good users": folder / "users.txt"}
+    files["good users"].write_text(f"{USER}:{hash_password(PASSWORD)}\n")
+    for name, count in (("no iterations", "0"), ("years a login", "10000000000000")):
+        files[name] = folder / f"{name.replace(' ', '_')}.txt"
+        files[name].write_text(f"# fine\n{USER}:{line.replace('$1$', f'${count}$')}\n")
+    files["cert"], files["key"] = certificate_pair(folder, "server")
+    _, files["other key"] = certificate_pair(folder, "other")
+    files["no URI cert"], files["no URI key"] = certificate_pair(folder, "bare", uri=None)
+    return files
+
+
+def test_a_matching_certificate_and_key_pass_the_start_checks(credentials):
+    from bwr_twin.serve.certificates import check_certificate
+
+    check_certificate(credentials["cert"], credentials["key"], "urn:bwr_twin:serve")  # no error
+
+
+@pytest.mark.parametrize("case", ["no iterations", "years a login", "another's key", "no application URI",
+                                  "IPv6 unclosed", "IPv6 unbracketed", "IPv6 not an address"])
+def test_bad_credentials_and_endpoints_are_refused_in_one_line(case, short_scene, credentials):
+    users = ["--users", str(credentials["good users"])]
+    endpoint = f"opc.tcp://127.0.0.1:{free_port()}"
+    options, expected = {
+        "no iterations": (["--users", str(credentials["no iterations"])],
+                          f"error: {credentials['no iterations']}:2: user 'plc': 0 PBKDF2 iterations; the server "
+                          "takes 600,000 (OWASP's recommendation for PBKDF2-SHA256) to 1,000,000 (a check under 1 s)"),
+        "years a login": (["--users", str(credentials["years a login"])],
+                          f"error: {credentials['years a login']}:2: user 'plc': 10000000000000 PBKDF2 iterations; "
+                          "the server takes 600,000"),
+        "another's key": (users + ["--certificate", str(credentials["cert"]), "--private-key",
+                                   str(credentials["other key"])],
+                          f"error: --private-key {credentials['other key']} does not match --certificate "
+                          f"{credentials['cert']}"),
+        "no application URI": (users + ["--certificate", str(credentials["no URI cert"]), "--private-key",
+                                        str(credentials["no URI key"])],
+                               f"error: --certificate {credentials['no URI cert']}: its subjectAltName must name "
+                               "the URI urn:bwr_twin:serve"),
+        "IPv6 unclosed": (["--endpoint", "opc.tcp://[::1:4840"],
+                          "error: --endpoint opc.tcp://[::1:4840: expected opc.tcp://HOST:PORT"),
+        "IPv6 unbracketed": (["--endpoint", "opc.tcp://::1:4840"],
+                             "error: --endpoint opc.tcp://::1:4840: expected opc.tcp://HOST:PORT, e.g. "
+                             "opc.tcp://127.0.0.1:4840; an IPv6 address goes in brackets"),
+        "IPv6 not an address": (["--endpoint", "opc.tcp://[::g]:4840"],
+                                "error: --endpoint opc.tcp://[::g]:4840: [::g] is not an IPv6 address"),
+    }[case]
+    result = subprocess.run(serve_command(short_scene, "--endpoint", endpoint, *options), cwd=ROOT,
+                            env=environment(), capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(expected), result.stderr
+    assert result.stdout == ""  # refused before it listened
+
+
+def test_password_checks_leave_the_server_responsive_and_sigterm_stops_it(short_scene, tmp_path):
+    """Logins at the top of the iteration bound (about 0.6 s each here), several at once: an
+    anonymous client is still answered at once, and SIGTERM stops the server while they are
+    being checked."""
+    from bwr_twin.serve.security import MAX_ITERATIONS
+
+    users = tmp_path / "users.txt"
+    users.write_text(f"{USER}:{hash_password(PASSWORD, iterations=MAX_ITERATIONS)}\n")
+    server = Launched(short_scene, "--users", str(users))
+    url = server.ready()
+
+    async def login():
+        async with client(url, PASSWORD):
+            await asyncio.sleep(30)  # held open: SIGTERM ends it
+
+    async def session():
+        async with client(url) as watcher:
+            plc = await Plc.attach(watcher)
+            logins = [asyncio.create_task(login()) for _ in range(4)]  # over 2 s of checks, one at a time
+            await asyncio.sleep(0.5)
+            started = time.perf_counter()
+            await plc.value("SimTime")
+            answered = time.perf_counter() - started
+            server.process.send_signal(signal.SIGTERM)
+            signalled = time.perf_counter()
+            await asyncio.gather(*logins, return_exceptions=True)
+        return answered, signalled
+
+    try:
+        answered, signalled = asyncio.run(asyncio.wait_for(session(), CALL_TIMEOUT))
+        server.process.wait(timeout=10)
+        stopped_in = time.perf_counter() - signalled
+    finally:
+        status = server.stop()
+    assert answered < 0.3, f"a read took {answered:.2f} s during the password checks"
+    assert status == 0 and stopped_in < 5.0, (status, stopped_in, server.stderr)
+    assert "Traceback" not in server.stderr, server.stderr

@@ -5,6 +5,8 @@ the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.m
     address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
     clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
     security.py       users file, password hashes, who may write; policies per endpoint
+    logins.py         password checks in a worker thread, before asyncua activates a session
+    certificates.py   the certificate and key checked at start: a pair, naming the application URI
     announce.py       what the server prints it exposes
     results.py        --out: a completed path's run directory
     server.py         the asyncua server around them, start to clean stop

@@ -14,10 +14,11 @@ from __future__ import annotations
 import argparse
 import asyncio
 import errno
+import ipaddress
+import re
 import socket
 import sys
 from pathlib import Path
-from urllib.parse import urlparse
 
 from bwr_twin.errors import exit_status
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME, ServeError
@@ -72,11 +73,14 @@ def _serve(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
     from bwr_twin.run import scene_overrides
     from bwr_twin.serve.announce import is_loopback
+    from bwr_twin.serve.certificates import check_certificate
     from bwr_twin.serve.security import check_options, load_users
-    from bwr_twin.serve.server import Options, serve
+    from bwr_twin.serve.server import APPLICATION_URI, Options, serve
 
     check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
                   private_key=args.private_key)
+    if args.certificate is not None:
+        check_certificate(args.certificate, args.private_key, APPLICATION_URI)
     _check_listenable(url, host, port)
     if args.users is not None:
         load_users(args.users)  # a bad line stops here, before any work
@@ -107,15 +111,29 @@ def _check_listenable(url: str, host: str, port: int) -> None:
 def _endpoint(text: str) -> tuple[str, str, int]:
     """(url, host, port) of an opc.tcp URL; ServeError naming the option if it is not one."""
     usage = f"--endpoint {text}: expected opc.tcp://HOST:PORT, e.g. {DEFAULT_ENDPOINT}"
-    parsed = urlparse(text)
-    try:
-        port = parsed.port
-    except ValueError:
-        raise ServeError(f"{usage} (port must be 1-65535)") from None
-    if parsed.scheme != "opc.tcp" or not parsed.hostname or parsed.path not in ("", "/") or port == 0:
+    scheme, separator, rest = text.partition("://")
+    if scheme != "opc.tcp" or not separator:
         raise ServeError(usage)
-    host, port = parsed.hostname, port or DEFAULT_PORT
+    address = _ADDRESS.fullmatch(rest.removesuffix("/"))
+    if address is None:
+        if rest.startswith("["):
+            raise ServeError(f"{usage}; an IPv6 address is [ADDRESS]:PORT, e.g. opc.tcp://[::1]:4840")
+        raise ServeError(usage + ("; an IPv6 address goes in brackets, e.g. opc.tcp://[::1]:4840"
+                                  if rest.count(":") > 1 else ""))
+    host = address["ipv6"] if address["ipv6"] is not None else address["host"]
+    if address["ipv6"] is not None:
+        try:
+            ipaddress.IPv6Address(host)
+        except ValueError:
+            raise ServeError(f"--endpoint {text}: [{host}] is not an IPv6 address") from None
+    port = DEFAULT_PORT if address["port"] is None else int(address["port"] or 0)
+    if not 1 <= port <= 65535:
+        raise ServeError(f"{usage} (port must be 1-65535)")
     return f"opc.tcp://{f'[{host}]' if ':' in host else host}:{port}", host, port
+
+
+# HOST:PORT or [IPV6]:PORT, the port optional; a host name holds no brackets, colons or slashes.
+_ADDRESS = re.compile(r"(?:\[(?P<ipv6>[^\[\]/]*)\]|(?P<host>[^\[\]:/@?#\s]+))(?::(?P<port>[0-9]*))?")
 
 
 if __name__ == "__main__":

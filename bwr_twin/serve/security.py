@@ -3,11 +3,14 @@ an authenticated user writes setpoints or calls methods once users are configure
 
 A users file holds one `name:hash` line per user (blank lines and `#` comments allowed); the hash
 is `pbkdf2_sha256$ITERATIONS$SALT$DIGEST` (hex), made by `python -m bwr_twin.serve.passwd NAME`.
-Passwords are never stored.
+Passwords are never stored. A check runs in a worker thread, one at a time
+(`PasswordUsers.verify`, called by `bwr_twin.serve.logins` before asyncua activates a session),
+so that the event loop keeps serving clients and hearing signals meanwhile.
 """
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import hmac
 import secrets
@@ -18,9 +21,17 @@ from asyncua.crypto.permission_rules import USER_TYPES, PermissionRuleset, User,
 from asyncua.server.user_managers import UserManager
 
 from bwr_twin.errors import BwrError
+from bwr_twin.serve.certificates import check_certificate
+from bwr_twin.serve.logins import install_login_checks
 
 SCHEME = "pbkdf2_sha256"
-ITERATIONS = 100_000  # about 54 ms a check here: cheap for a login, dear for guessing
+# The iterations a users file may ask for. The floor is OWASP's current recommendation for
+# PBKDF2-HMAC-SHA256 (600,000); the ceiling keeps one check under a second on the 2-core reference
+# machine (0.55-0.73 s measured, loaded; the floor 0.33-0.41 s), so that a file cannot make every
+# login a denial of service. 0 or a typo of a few digits is refused at start, not at a login.
+MIN_ITERATIONS = 600_000
+MAX_ITERATIONS = 1_000_000
+ITERATIONS = MIN_ITERATIONS  # what passwd writes
 
 
 class SecurityError(BwrError):
@@ -55,13 +66,24 @@ def load_users(path: Path) -> dict[str, str]:
             continue
         name, _, stored = line.partition(":")
         fields = stored.split("$")
-        if not name or len(fields) != 4 or fields[0] != SCHEME or not fields[1].isdigit() or not _hex(fields[2:]):
+        if not name or len(fields) != 4 or fields[0] != SCHEME or not _digits(fields[1]) or not _hex(fields[2:]):
             raise SecurityError(f"{path}:{number}: expected 'name:{SCHEME}$ITERATIONS$SALT$DIGEST' "
                                 "(python -m bwr_twin.serve.passwd NAME makes one)")
+        count = fields[1].lstrip("0") or "0"
+        if len(count) > len(str(MAX_ITERATIONS)) or not MIN_ITERATIONS <= int(count) <= MAX_ITERATIONS:
+            shown = count if len(count) <= 15 else f"a {len(count)}-digit number of"
+            raise SecurityError(f"{path}:{number}: user {name!r}: {shown} PBKDF2 iterations; the server takes "
+                                f"{MIN_ITERATIONS:,} (OWASP's recommendation for PBKDF2-SHA256) to "
+                                f"{MAX_ITERATIONS:,} (a check under 1 s): make the line again with "
+                                "python -m bwr_twin.serve.passwd NAME")
         users[name] = stored
     if not users:
         raise SecurityError(f"{path}: no users in the users file")
     return users
+
+
+def _digits(text: str) -> bool:
+    return text.isascii() and text.isdigit()
 
 
 def _hex(parts: list[str]) -> bool:
@@ -72,18 +94,34 @@ def _hex(parts: list[str]) -> bool:
 
 
 class PasswordUsers(UserManager):
-    """Users of a users file may read, write and call; an anonymous session, if allowed, reads only."""
+    """Users of a users file may read, write and call; an anonymous session, if allowed, reads only.
+
+    asyncua asks `get_user` synchronously, in the event loop; `verify` computes its answer
+    beforehand in a worker thread and leaves the verdict for it. Without one (a path asyncua takes
+    that `logins` does not see), `get_user` checks in place: bounded by MAX_ITERATIONS.
+    """
 
     def __init__(self, users: dict[str, str]):
         self.users = users
+        self._verdicts: dict[tuple[str, str], bool] = {}
+        self._one_at_a_time = asyncio.Semaphore(1)  # a flood of logins queues; it never takes both cores
+
+    async def verify(self, username: str, password: str) -> None:
+        """Check a password off the event loop; the verdict waits for the next `get_user`."""
+        async with self._one_at_a_time:
+            self._verdicts[username, password] = await asyncio.to_thread(self._matches, username, password)
 
     def get_user(self, iserver, username=None, password=None, certificate=None) -> User | None:
         if username is None:  # an anonymous token (on a secure channel `certificate` is the client's own)
             return User(role=UserRole.Anonymous)
+        verdict = self._verdicts.pop((username, password), None)
+        if verdict is None:
+            verdict = self._matches(username, password)
+        return User(role=UserRole.User, name=username) if verdict else None  # None: BadUserAccessDenied
+
+    def _matches(self, username: str, password: str | None) -> bool:
         stored = self.users.get(username or "")
-        if stored is not None and password is not None and check_password(password, stored):
-            return User(role=UserRole.User, name=username)
-        return None  # asyncua answers BadUserAccessDenied
+        return stored is not None and password is not None and check_password(password, stored)
 
 
 _WRITES = {ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary),
@@ -143,6 +181,7 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
         server.set_identity_tokens([ua.AnonymousIdentityToken])
         return names, "anonymous access: read and write (no --users)"
     users = load_users(users_file)
+    install_login_checks()
     server.iserver.set_user_manager(PasswordUsers(users))
     server.set_security_policy(policies, permission_ruleset=ReadOnlyAnonymous())
     server.set_identity_tokens([ua.AnonymousIdentityToken, ua.UserNameIdentityToken])
