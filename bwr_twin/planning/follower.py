@@ -105,17 +105,16 @@ class BenchReference:
 
     def phase(self) -> Phase:
         """Where every run stands in its plan this period."""
-        phase = Phase(self.bench.copy(), np.zeros(self.runs, dtype=bool), np.zeros(self.runs, dtype=bool),
-                      np.full(self.runs, np.nan))
+        cutting, steady, depth = [False] * self.runs, [False] * self.runs, [math.nan] * self.runs
         for run in range(self.runs):
             p = self.current_pass(run)
             if p is None:
                 continue
             slew = self.q.item(run, SLEW)
-            phase.cutting[run] = p.cuts_at(slew)
-            phase.steady[run] = p.steady_at(slew)
-            phase.planned_depth[run] = p.cut_depth * abs(math.cos(slew))
-        return phase
+            cutting[run], steady[run] = p.cuts_at(slew), p.steady_at(slew)
+            depth[run] = p.cut_depth * abs(math.cos(slew))
+        return Phase(self.bench.copy(), np.array(cutting, dtype=bool), np.array(steady, dtype=bool),
+                     np.array(depth, dtype=float))
 
     def current_pass(self, run: int) -> Pass | None:
         if self.finished[run]:
