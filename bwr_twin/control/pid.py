@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from bwr_twin.control.interface import Controller, ControllerContext, check_non_negative
@@ -50,10 +51,22 @@ class PidController(Controller):
         self._integral = np.zeros((context.runs, 3))  # m s, rad s
 
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref, ids):
-        e = q_ref - q
-        unclipped = self._holding + self._kp * e + self._ki * self._integral + self._kd * (qd_ref - qd)
-        force = np.clip(unclipped, self._low, self._high)
-        # Integrate unless saturated with the error pushing further the same way.
-        winding = ((unclipped > self._high) & (e > 0)) | ((unclipped < self._low) & (e < 0))
-        self._integral += np.where(winding, 0.0, e * self._dt)
+        force = np.empty(q.shape)
+        _pid(q, qd, q_ref.reshape(-1, 3), qd_ref.reshape(-1, 3), self._kp, self._ki, self._kd, self._holding,
+             self._low, self._high, self._dt, self._integral, force)
         return force
+
+
+@numba.njit(cache=True)
+def _pid(q, qd, q_ref, qd_ref, kp, ki, kd, holding, low, high, dt, integral, force):  # pragma: no cover - compiled
+    """The law for every run and axis; the reference is (1, 3) when shared by every run. The
+    integral grows unless the output is saturated with the error pushing further the same way."""
+    shared = q_ref.shape[0] == 1
+    for r in range(q.shape[0]):
+        rr = 0 if shared else r
+        for j in range(3):
+            e = q_ref[rr, j] - q[r, j]
+            unclipped = holding[r, j] + kp[r, j] * e + ki[r, j] * integral[r, j] + kd[r, j] * (qd_ref[rr, j] - qd[r, j])
+            force[r, j] = min(max(unclipped, low[j]), high[j])
+            winding = (unclipped > high[j] and e > 0) or (unclipped < low[j] and e < 0)
+            integral[r, j] += 0.0 if winding else e * dt

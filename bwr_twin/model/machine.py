@@ -11,11 +11,14 @@ that geometry: a slew axis at (sx, sy), a luff pivot `pivot_reach` out from it a
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+import numba
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
@@ -312,16 +315,10 @@ class Machine:
         """World position of the CP for joint values q of shape (..., 3) -> (..., 3), in m."""
         g = self.geometry
         q = np.asarray(q, dtype=float)
-        elevation = g.boom_angle0 + q[..., 2]
-        reach = g.pivot_reach + g.boom_length * np.cos(elevation)
-        return np.stack(
-            [
-                q[..., 0] + g.slew_axis_xy[0] + reach * np.cos(q[..., 1]),
-                g.slew_axis_xy[1] + reach * np.sin(q[..., 1]),
-                g.pivot_height + g.boom_length * np.sin(elevation),
-            ],
-            axis=-1,
-        )
+        out = np.empty(q.shape)
+        _fk(q.reshape(-1, 3), g.slew_axis_xy[0], g.slew_axis_xy[1], g.pivot_reach, g.pivot_height, g.boom_length,
+            g.boom_angle0, out.reshape(-1, 3))
+        return out
 
     def ik(self, p: np.ndarray, *, label: str = "target", check_envelope: bool = True) -> np.ndarray:
         """Joint values (travel, slew, luff) that put the CP at world point p (m).
@@ -366,3 +363,14 @@ class Machine:
 
     def __repr__(self) -> str:
         return f"Machine({str(self.path)!r})"
+
+
+@numba.njit(cache=True)
+def _fk(q, slew_x, slew_y, pivot_reach, pivot_height, boom_length, boom_angle0, out):  # pragma: no cover - compiled
+    """The paper's Eq. (2) for the model's geometry, row by row: q (n, 3) -> CP (n, 3)."""
+    for r in range(q.shape[0]):
+        elevation = boom_angle0 + q[r, 2]
+        reach = pivot_reach + boom_length * math.cos(elevation)
+        out[r, 0] = q[r, 0] + slew_x + reach * math.cos(q[r, 1])
+        out[r, 1] = slew_y + reach * math.sin(q[r, 1])
+        out[r, 2] = pivot_height + boom_length * math.sin(elevation)

@@ -7,6 +7,9 @@ each bench.
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from bwr_twin.planning.follower import Phase
@@ -33,42 +36,20 @@ class PlanOutcome:
         self.overcut_max, self.overcut_time = np.zeros(runs), np.zeros(runs)  # m, s
         self.bench_carried = np.zeros((runs, plan.benches))  # m^3
         self._bench = np.zeros(runs, dtype=np.int64)
-        self._runs = np.arange(runs)
 
     def add(self, k: int, phase: Phase, reclaim) -> None:
         """Period k, in which the runs stood at `phase` and their reclaim (bwr_twin.stockpile.
         reclaim.Reclaim) cut, carried and discharged what it did."""
-        self._bench[:] = phase.bench
-        cut, cp = reclaim.cut, reclaim.cp
-        cutting = cut.volume > 0
-        if cutting.any():
-            self._cutting(k, phase, cut, cp, cutting, reclaim.rate)
-        else:
-            self._steady_for[:] = 0
+        cut = reclaim.cut
+        _add(k * self.period, self._settle, phase.bench, phase.steady, phase.planned_depth, cut.volume, cut.depth,
+             reclaim.cp, reclaim.rate, self.target, self._steady_for, self.steady_periods, self.steady_sum,
+             self.steady_square_sum, self.steady_within, self.contact, self.contact_time, self.overcut_max,
+             self.overcut_time, self._bench)
         self.discharged(reclaim.conveyor.discharged)
 
     def discharged(self, volume: np.ndarray) -> None:
         """The buckets discharged `volume` (runs,) m^3 onto the belt in the current bench."""
-        if volume.any():
-            np.add.at(self.bench_carried, (self._runs, self._bench), volume)
-
-    def _cutting(self, k: int, phase: Phase, cut, cp: np.ndarray, cutting: np.ndarray, rate: np.ndarray) -> None:
-        first = cutting & np.isnan(self.contact_time)
-        if first.any():
-            self.contact[first] = cp[first]
-            self.contact_time[first] = k * self.period
-        if phase.steady.any():  # entering or leaving the face, the cut depth is the wheel's side
-            over = np.where(phase.steady & cutting, cut.depth - phase.planned_depth, 0.0)
-            larger = over > self.overcut_max
-            self.overcut_max[larger] = over[larger]
-            self.overcut_time[larger] = k * self.period
-        self._steady_for = np.where(phase.steady, self._steady_for + 1, 0)
-        counted = self._steady_for > self._settle
-        if counted.any():
-            self.steady_periods += counted
-            self.steady_sum += np.where(counted, rate, 0.0)
-            self.steady_square_sum += np.where(counted, rate**2, 0.0)
-            self.steady_within += counted & (np.abs(rate - self.target) <= RATE_BAND * self.target)
+        _discharged(volume, self._bench, self.bench_carried)
 
     def metrics(self, run: int, density: float) -> dict:
         """The plan's share of metrics.json's `reclaim` object for `run`; `density` kg/m^3."""
@@ -92,3 +73,39 @@ class PlanOutcome:
             "bench_t": [float(v * tonnes) for v in self.bench_carried[run]],
             "bench_planned_t": self.plan.bench_tonnes(),
         }
+
+
+@numba.njit(cache=True)
+def _add(time, settle, bench, steady, planned_depth, volume, depth, cp, rate, target, steady_for, steady_periods,
+         steady_sum, steady_square_sum, steady_within, contact, contact_time, overcut_max, overcut_time,
+         run_bench):  # pragma: no cover - compiled
+    """One period's measures for every run."""
+    run_bench[:] = bench
+    if not (volume > 0).any():
+        steady_for[:] = 0
+        return
+    any_steady = steady.any()
+    for r in range(len(volume)):
+        cutting = volume[r] > 0
+        if cutting and math.isnan(contact_time[r]):
+            contact[r] = cp[r]
+            contact_time[r] = time
+        if any_steady:  # entering or leaving the face, the cut depth is the wheel's side
+            over = depth[r] - planned_depth[r] if (steady[r] and cutting) else 0.0
+            if over > overcut_max[r]:
+                overcut_max[r] = over
+                overcut_time[r] = time
+        steady_for[r] = steady_for[r] + 1 if steady[r] else 0
+        if steady_for[r] > settle:
+            steady_periods[r] += 1
+            steady_sum[r] += rate[r]
+            steady_square_sum[r] += rate[r] * rate[r]
+            if abs(rate[r] - target[r]) <= RATE_BAND * target[r]:
+                steady_within[r] += 1
+
+
+@numba.njit(cache=True)
+def _discharged(volume, bench, bench_carried):  # pragma: no cover - compiled
+    for r in range(len(volume)):
+        if volume[r] != 0.0:
+            bench_carried[r, bench[r]] += volume[r]

@@ -34,6 +34,7 @@ class Conveyor:
         self._hold_end = -1  # the last period of the current belt load
         self.rate = np.zeros(runs)
         self.discharged = np.zeros(runs)
+        self._discharging = False  # a bucket discharged as the last period ended
         self.dug, self.carried, self.spilled = np.zeros(runs), np.zeros(runs), np.zeros(runs)
         self.conveyed = np.zeros(runs)
         self.carrying_periods = np.zeros(runs, dtype=np.int64)
@@ -48,8 +49,9 @@ class Conveyor:
             self._next_rate = None
         self.dug += volume
         self.bucket += volume
-        if self.discharged.any():
+        if self._discharging:
             self.discharged[:] = 0.0
+            self._discharging = False
         if (k + 1) * self.period >= self._discharge_at - 1e-9:
             self._discharge_onto_belt(k)
 
@@ -61,6 +63,7 @@ class Conveyor:
         """After the last period k: the bucket in the cut discharges, and what the belt would
         carry after the end is not counted as conveyed."""
         self.discharged[:] = self._discharge()
+        self._discharging = True
         beyond = self._hold_end - k
         if beyond > 0:
             rate = self._next_rate if self._next_rate is not None else self.rate
@@ -98,6 +101,7 @@ class Conveyor:
         added for the whole hold at once (and the part beyond the end taken off again)."""
         carried = self._discharge()
         self.discharged[:] = carried
+        self._discharging = True
         following = self._discharge_at + self.bucket_interval
         periods = int(np.ceil(following / self.period - 1e-9)) - (k + 1)
         rate = carried / (periods * self.period) * self.density * (SECONDS_PER_HOUR / KG_PER_T)  # t/h
