@@ -18,12 +18,14 @@ one run directory per controller and seed, as `bwr_twin.run` writes it without f
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
+from bwr_twin.config.sweep import MAX_RUNS, PLANNABLE_RUNS
 from bwr_twin.errors import BwrError, exit_status
-from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
+from bwr_twin.sim.budget import FORCE_HELP, Estimate, check_estimate, estimate
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=1, help="disturbance seeds 1..N for every controller")
     parser.add_argument("--out", required=True, type=Path, help="output directory")
     parser.add_argument("--overwrite", action="store_true", help="replace DIR, a comparison the twin wrote")
-    parser.add_argument("--force", action="store_true", help=FORCE_HELP)
+    parser.add_argument("--force", action="store_true", help=f"{FORCE_HELP}, or {MAX_RUNS} runs")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error("--seeds must be at least 1")
@@ -57,15 +59,22 @@ def _compare(args: argparse.Namespace) -> int:
     labels = [source.stem for source in sources]
     if len(set(labels)) != len(labels):
         raise BwrError(f"--controllers: two scenes share the name {_first_twice(labels)!r}; rename one")
-    groups = []
-    for source in sources:
-        table = load_scene(source).controller.to_dict()
-        groups.append([load_scene(base, {"controller": _plain(table), "simulation.seed": seed})
-                       for seed in range(1, args.seeds + 1)])
-    scenes = [scene for group in groups for scene in group]
-    inputs = {file for scene in scenes for file in scene.input_files} | set(sources)
+    tables = [_plain(load_scene(source).controller.to_dict()) for source in sources]
+    # One scene per controller first: the seeds change no file and no cost, so the inputs and the
+    # estimate are known before thousands of scenes are built.
+    firsts = [load_scene(base, {"controller": table, "simulation.seed": 1}) for table in tables]
+    inputs = {file for scene in firsts for file in scene.input_files} | set(sources)
     check_output(args.out, "comparison", overwrite=args.overwrite, inputs=inputs)
-    check_estimate(estimate(scenes, chunk=args.seeds), where=base, out_dir=args.out, force=args.force)
+    runs = len(sources) * args.seeds
+    if runs > PLANNABLE_RUNS or (runs > MAX_RUNS and not args.force):
+        limit = f"{PLANNABLE_RUNS:,}" if runs > PLANNABLE_RUNS else f"{MAX_RUNS:,} without --force"
+        raise BwrError(f"--seeds {args.seeds}: {len(sources)} controllers x {args.seeds} seeds are {runs:,} runs, "
+                       f"more than the {limit}; choose fewer --seeds")
+    check_estimate(_scaled(estimate(firsts, chunk=args.seeds), args.seeds), where=f"{base}: --seeds {args.seeds}",
+                   out_dir=args.out, force=args.force)
+    groups = [[first, *(load_scene(base, {"controller": table, "simulation.seed": seed})
+                        for seed in range(2, args.seeds + 1))] for first, table in zip(firsts, tables)]
+    scenes = [scene for group in groups for scene in group]
     with simulated_seconds("comparing") as progress:
         outcomes = simulate_grouped(scenes, progress=progress)
     results = []
@@ -79,6 +88,12 @@ def _compare(args: argparse.Namespace) -> int:
     print(table, end="")
     print(f"{len(labels)} controllers x {args.seeds} seeds on {base.name}; results in {args.out}/")
     return 0
+
+
+def _scaled(cost: Estimate, seeds: int) -> Estimate:
+    """The cost of every seed from that of seed 1 (the lockstep's size already in its memory)."""
+    return dataclasses.replace(cost, runs=cost.runs * seeds, physics_steps=cost.physics_steps * seeds,
+                               seconds=cost.seconds * seeds, disk_bytes=cost.disk_bytes * seeds)
 
 
 def _plain(table: dict) -> dict:

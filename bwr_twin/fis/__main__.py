@@ -26,6 +26,11 @@ from bwr_twin.errors import SceneError, exit_status
 from bwr_twin.results.ownership import picture_metadata, text_mark, written_by
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+# What a command samples at most, counted before anything is allocated: far beyond any use
+# (evalfis samples an output range 101 times, gensurf an input 15 times), well within memory.
+MAX_POINTS = 1_000_000  # samples of an output range
+MAX_SURFACE_ROWS = 250_000  # points of a surface: 500 x 500 over two inputs; a 3-D plot of more crawls
+MAX_SURFACE_VALUES = 100_000_000  # its points times the output samples: about a minute of inference
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -136,6 +141,11 @@ def _surface(path: Path, out: Path, overwrite: bool, output: int, grid: int, poi
         raise SceneError(f"--grid must be 2 or more samples per input, got {grid}")
     _check_destination(path, out, overwrite)
     system = load_system(path)
+    rows = grid ** min(len(system.inputs), 2)
+    if rows > MAX_SURFACE_ROWS or rows * points > MAX_SURFACE_VALUES:
+        raise SceneError(f"--grid {grid}: {rows:.3g} points of the surface ({grid} per input) x {points} output "
+                         f"samples, beyond the limit of {MAX_SURFACE_ROWS:,} points and {MAX_SURFACE_VALUES:.0e} "
+                         "samples; choose a smaller --grid or --points")
 
     from bwr_twin.fis.surface import surface_figure
 
@@ -157,6 +167,9 @@ def _count(n: int, noun: str) -> str:
 def _check_points(points: int) -> None:
     if points < 2:
         raise SceneError(f"--points must be 2 or more samples of the output range, got {points}")
+    if points > MAX_POINTS:
+        raise SceneError(f"--points {points}: more samples of the output range than the limit of {MAX_POINTS:,} "
+                         "(evalfis takes 101)")
 
 
 def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
