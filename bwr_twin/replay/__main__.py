@@ -23,12 +23,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.exposure import exposure_warning
-from bwr_twin.replay.recording import Plan, Recording
+from bwr_twin.replay.recording import Plan, Recording, path_difference
 from bwr_twin.results.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
@@ -128,11 +127,9 @@ def _ghost(run_dir: Path, plan: Plan) -> tuple[Recording, str]:
     if not run_dir.is_dir():
         raise BwrError(f"{run_dir}: --ghost must name a run directory")
     ghost = Recording.from_run_dir(run_dir)
-    same = (np.array_equal(ghost.plan.via_times, plan.via_times)
-            and np.allclose(ghost.plan.via_points, plan.via_points, atol=1e-9))
-    if not same:
-        raise BwrError(f"{run_dir}: --ghost follows another path ({len(ghost.plan.via_times)} via points over "
-                       f"{ghost.plan.duration:g} s) than the replay ({len(plan.via_times)} over {plan.duration:g} s)")
+    differs = path_difference(ghost.plan, plan)
+    if differs:
+        raise BwrError(f"{run_dir}: --ghost follows another path than the replay: {differs}")
     return ghost, run_dir.name
 
 

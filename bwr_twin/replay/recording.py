@@ -9,6 +9,7 @@ run directory keyed by everything that decides its outcome.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import warnings
@@ -186,13 +187,7 @@ class Recording:
     @classmethod
     def from_run_dir(cls, run_dir: str | Path) -> Recording:
         """Read a run directory written by `python -m bwr_twin.run` (or `results.write_run`)."""
-        from bwr_twin.results.rundir import (
-            METRICS_FILE,
-            PILE_FILE,
-            SCENE_FILE,
-            TIMESERIES_FILE,
-            read_timeseries,
-        )
+        from bwr_twin.results.rundir import METRICS_FILE, PILE_FILE, SCENE_FILE, TIMESERIES_FILE
 
         run_dir = Path(run_dir)
         missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
@@ -200,12 +195,7 @@ class Recording:
             raise BwrError(f"{run_dir}: not a run directory of bwr_twin.run (no {', '.join(missing)})")
         try:
             scene = json.loads((run_dir / SCENE_FILE).read_text())
-            with warnings.catch_warnings():  # numpy warns of an empty file; the check below says it
-                warnings.simplefilter("ignore", UserWarning)
-                columns = read_timeseries(run_dir / TIMESERIES_FILE)
-            rows = len(columns.get("time_s", ()))
-            if rows < 2:
-                raise BwrError(f"{run_dir / TIMESERIES_FILE}: {rows} rows of samples; a replay needs at least 2")
+            columns = read_recorded(run_dir / TIMESERIES_FILE)
             machine = Machine(scene["machine"]["mjcf"])
             pile_file = run_dir / PILE_FILE
             pile = PileHistory.read(pile_file, float(columns["time_s"][-1])) if pile_file.is_file() else None
@@ -278,6 +268,84 @@ class Recording:
         )
         return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile)
+
+
+def read_recorded(path: Path) -> dict[str, np.ndarray]:
+    """A run directory's timeseries.csv as {column: values}, checked for what the replay draws:
+    its columns there, at least 2 rows, every row complete, those columns' values finite and time
+    increasing. A problem is one BwrError naming the file, the row (1 = the first after the
+    header) and the column."""
+    from bwr_twin.results.rundir import column_name
+    from bwr_twin.textfile import read_text
+
+    try:
+        lines = read_text(path).splitlines()
+    except UnicodeDecodeError:
+        raise BwrError(f"{path}: not a text file") from None
+    header = lines[0].split(",") if lines else []
+    rows = [line for line in lines[1:] if line.strip()]
+    if len(rows) < 2:
+        raise BwrError(f"{path}: {len(rows)} rows of samples; a replay needs at least 2")
+    needed = ["time_s", *(column_name(stem, j) for stem in ("q_desired", "qd_desired", "q_actual", "qd_actual")
+                          for j in range(len(AXES))),
+              *(f"cp_{kind}_{c}_m" for kind in ("desired", "actual") for c in "xyz")]
+    needed += ["reclaim_rate_t/h"] if "reclaim_rate_t/h" in header else []  # a reclaim's
+    missing = [name for name in needed if name not in header]
+    if missing:
+        like = difflib.get_close_matches(missing[0], [name for name in header if name not in needed], n=1)
+        renamed = f": renamed '{like[0]}'?" if like else ""
+        raise BwrError(f"{path}: no column '{missing[0]}', which bwr_twin.run writes and the replay draws{renamed}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            values = np.loadtxt(rows, delimiter=",", ndmin=2)
+    except ValueError:
+        values = None
+    if values is None or values.shape[1] != len(header):
+        _bad_row(path, header, rows)  # numpy's message names no column: find the row and say it
+    used = [header.index(name) for name in needed]
+    bad = np.argwhere(~np.isfinite(values[:, used]))
+    if len(bad):
+        row, k = bad[0]
+        raise BwrError(f"{path}: row {row + 1}, column '{needed[k]}': {values[row, used[k]]}, not a finite number")
+    steps = np.diff(values[:, 0])
+    if not (steps > 0).all():
+        row = int(np.argmax(~(steps > 0))) + 2
+        raise BwrError(f"{path}: row {row}, column 'time_s': {values[row - 1, 0]:g} s does not come after the row "
+                       f"before's {values[row - 2, 0]:g} s")
+    return {name: values[:, i] for i, name in enumerate(header)}
+
+
+def _bad_row(path: Path, header: list[str], rows: list[str]) -> None:
+    """Raise the BwrError naming the first row that is short, long or holds something not a number."""
+    for number, line in enumerate(rows, start=1):
+        fields = line.split(",")
+        if len(fields) != len(header):
+            raise BwrError(f"{path}: row {number} has {len(fields)} values for the header's {len(header)} columns "
+                           f"(a truncated or damaged file): column '{header[min(len(fields), len(header)) - 1]}' "
+                           "is the last it fills")
+        for name, field in zip(header, fields):
+            try:
+                float(field)
+            except ValueError:
+                raise BwrError(f"{path}: row {number}, column '{name}': {field.strip()!r} is not a number") from None
+    raise BwrError(f"{path}: unreadable as numbers")
+
+
+def path_difference(ghost: Plan, plan: Plan) -> str:
+    """What differs between the via points of two plans, or "" if they follow the same path."""
+    if len(ghost.via_times) != len(plan.via_times):
+        return f"{len(ghost.via_times)} via points over {ghost.duration:g} s against {len(plan.via_times)} over " \
+               f"{plan.duration:g} s"
+    names = plan.names
+    for i, (t_ghost, t_plan) in enumerate(zip(ghost.via_times, plan.via_times)):
+        if t_ghost != t_plan:
+            return f"via point {names[i] or i + 1} at t = {t_ghost:g} s against {t_plan:g} s"
+        p_ghost, p_plan = ghost.via_points[i], plan.via_points[i]
+        if not np.allclose(p_ghost, p_plan, atol=1e-9):
+            return (f"via point {names[i] or i + 1} (t = {t_plan:g} s) at ({', '.join(f'{v:.6g}' for v in p_ghost)}) m "
+                    f"against ({', '.join(f'{v:.6g}' for v in p_plan)}) m, in world coordinates")
+    return ""
 
 
 def decimate(time: np.ndarray, step: float) -> np.ndarray:
