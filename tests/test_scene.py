@@ -4,7 +4,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import PAPER_MJCF, PAPER_VIA_POINTS, SCENES
+from conftest import MJCF, PAPER_MJCF, PAPER_VIA_POINTS, SCENES
 
 from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
@@ -115,8 +115,40 @@ def test_extends_cycle_and_missing_base_are_named(tmp_path):
     with pytest.raises(SceneError, match=r"b.toml: 'extends' makes a cycle through a.toml"):
         load_scene(tmp_path / "a.toml")
     (tmp_path / "c.toml").write_text('extends = "gone.toml"\n')
-    with pytest.raises(SceneError, match=r"gone.toml: scene file not found \(extended by .*c.toml\)"):
+    with pytest.raises(SceneError, match=r"c.toml: 'extends' names 'gone.toml', neither a file beside it "
+                                         r"\(.*gone.toml\) nor a shipped scene"):
         load_scene(tmp_path / "c.toml")
+
+
+def test_extends_names_a_shipped_scene_and_a_file_beside_it_wins(tmp_path):
+    (tmp_path / "mine.toml").write_text('extends = "heavy_reclaim"\n[simulation]\nseed = 7\n')
+    scene = load_scene(tmp_path / "mine.toml")
+    assert scene.simulation.seed == 7 and scene.machine.mjcf.name == "bwr_heavy.xml"
+    (tmp_path / "heavy_reclaim").write_text((SCENES / "paper_individual_gains.toml").read_text()
+                                            .replace('"../mjcf/', f'"{MJCF}/')
+                                            .replace('"rulebases/', f'"{SCENES}/rulebases/'))
+    (tmp_path / "beside.toml").write_text('extends = "heavy_reclaim"\n')
+    assert load_scene(tmp_path / "beside.toml").machine.mjcf.name == "bwr.xml"
+
+
+def test_an_extending_scene_replaces_inherited_alternatives_and_tables(tmp_path):
+    np.savez(tmp_path / "survey.npz", x=np.arange(0.0, 40.0, 0.5), y=np.arange(20.0, 50.0, 0.5),
+             z=np.full((60, 80), 5.0))
+    (tmp_path / "survey.toml").write_text('extends = "heavy_reclaim"\n[stockpile]\nsurface_file = "survey.npz"\n')
+    pile = load_scene(tmp_path / "survey.toml").stockpile
+    assert pile.windrow is None and pile.surface_file == tmp_path / "survey.npz"
+    (tmp_path / "tonnes.toml").write_text('extends = "heavy_bench_reclaim"\n[reclaim]\nstop = { tonnes = 500.0 }\n')
+    stop = load_scene(tmp_path / "tonnes.toml").reclaim.stop
+    assert (stop.benches, stop.tonnes) == (None, 500.0)
+    (tmp_path / "bare.toml").write_text('extends = "heavy_dig_pile"\nreplace = ["digging"]\n')
+    assert load_scene(tmp_path / "bare.toml").digging is None
+    (tmp_path / "both.toml").write_text('extends = "heavy_reclaim"\n[stockpile]\nsurface_file = "survey.npz"\n'
+                                        "[stockpile.windrow]\nlength = 1.0\n")
+    with pytest.raises(SceneError, match=r"needs either a \[stockpile.windrow\] or a 'stockpile.surface_file', not both"):
+        load_scene(tmp_path / "both.toml")
+    (tmp_path / "alone.toml").write_text('replace = ["digging"]\n')
+    with pytest.raises(SceneError, match=r"alone.toml: 'replace' names tables of the scene it extends, but it has no"):
+        load_scene(tmp_path / "alone.toml")
 
 
 def test_plant_payload_is_validated():

@@ -256,7 +256,12 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
 
     Args:
         path: the TOML file. Relative paths inside it are relative to its folder. A top-level
-            `extends = "other.toml"` reads that scene first and lays this file's tables over it.
+            `extends = "other.toml"` reads that scene first and lays this file's tables over it,
+            key by key; `extends` may also name a shipped scene ("heavy_reclaim"). Of keys
+            that exclude each other (ALTERNATIVES: [path] or [reclaim], a windrow or a
+            surface_file, one bench stop), the one this file gives replaces the base's; and
+            `replace = ["digging", "plant.payload"]` takes those tables (or keys) from this file
+            alone, dropping the base's where this file has none.
         overrides: dotted keys to replace before validation, e.g. {"simulation.seed": 3,
             "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
     """
@@ -300,12 +305,17 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
     except UnicodeDecodeError:
         raise SceneError(f"{path}: not a text file") from None
     base = raw.pop("extends", None)
+    replace = raw.pop("replace", [])
     raw = _resolve_paths(raw, path.parent)
     if base is None:
+        if replace:
+            raise SceneError(f"{path}: 'replace' names tables of the scene it extends, but it has no 'extends'")
         return raw
     if not isinstance(base, str):
-        raise SceneError(f"{path}: 'extends' must be a file path, got {base!r}")
-    base_path = (path.parent / base).resolve()
+        raise SceneError(f"{path}: 'extends' must be a file path or a shipped scene's name, got {base!r}")
+    if not (isinstance(replace, list) and all(isinstance(t, str) and t for t in replace)):
+        raise SceneError(f"{path}: 'replace' must be a list of table names, e.g. [\"digging\"], got {replace!r}")
+    base_path = _extended(path, base)
     chain = extended_by + (path.resolve(),)
     if base_path in chain:
         raise SceneError(f"{path}: 'extends' makes a cycle through {base_path.name}")
@@ -314,10 +324,53 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
     named = raw.get("controller", {}).get("type") if isinstance(raw.get("controller"), dict) else None
     if named is not None and named != _controller_type(base_raw):
         merged["controller"] = raw["controller"]  # another controller: none of the base's settings
-    for motion, other in (("path", "reclaim"), ("reclaim", "path")):
-        if motion in raw and other not in raw:
-            merged.pop(other, None)  # a path replaces its base's reclaim plan, and a plan its base's path
+    for dotted, keys in ALTERNATIVES.items():
+        given, inherited = _table(raw, dotted), _table(merged, dotted)
+        if given is not None and inherited is not None and any(k in given for k in keys):
+            for key in keys:
+                if key not in given:
+                    inherited.pop(key, None)  # one alternative replaces the base's other
+    for dotted in replace:
+        *parents, name = dotted.split(".")
+        node, own = merged, _table(raw, ".".join(parents)) if parents else raw
+        for parent in parents:
+            node = node.get(parent) if isinstance(node, dict) else None
+        if isinstance(node, dict) and name in node:
+            node.pop(name)  # this file's table, or none: nothing of the base's
+            if own is not None and name in own:
+                node[name] = own[name]
     return merged
+
+
+# Keys of a table that exclude each other: a scene that extends another and gives one of them
+# replaces whichever of them its base gave ("" is the top level).
+ALTERNATIVES = {
+    "": ("path", "reclaim"),
+    "stockpile": ("windrow", "surface_file"),
+    "reclaim.stop": ("benches", "tonnes", "time"),
+}
+
+
+def _table(raw: dict, dotted: str) -> dict | None:
+    node: Any = raw
+    for name in filter(None, dotted.split(".")):
+        node = node.get(name) if isinstance(node, dict) else None
+    return node if isinstance(node, dict) else None
+
+
+def _extended(path: Path, base: str) -> Path:
+    """The scene file `extends` names: relative to the scene's folder, or else a shipped scene's
+    name, as on the command line ("heavy_reclaim"); relative paths win."""
+    from bwr_twin.shipped import SCENES
+
+    local = (path.parent / base).resolve()
+    if local.is_file():
+        return local
+    for shipped in (SCENES / base, SCENES / f"{base}.toml"):
+        if shipped.is_file():
+            return shipped.resolve()
+    raise SceneError(f"{path}: 'extends' names {base!r}, neither a file beside it ({local}) nor a shipped "
+                     "scene (python -m bwr_twin.run lists them for a name it does not know)")
 
 
 def _controller_type(raw: dict) -> str:
