@@ -21,6 +21,7 @@ from bwr_twin.gym.scales import REFERENCE_ACCELERATION, REFERENCE_POSITION, REFE
 TINY_VIA_POINTS = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 2.0, "p": [0.0, -11.0, 54.7]}]
 # Full force (10 MN on travel) drives the paper machine out of its +-25 m of travel within a second.
 PUSH = dict(action_mode="force", force_scale=(1e7, 1e8, 1e8))
+HUGE = dict(action_mode="force", force_scale=(1e300, 1e300, 1e300))  # an action of 1 diverges
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +94,7 @@ def test_leaving_the_envelope_truncates(tiny):
 
 def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny, tmp_path, monkeypatch, capfd):
     monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
-    env = gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force", force_scale=(1e300, 1e300, 1e300)).unwrapped
+    env = gymnasium.make(ENV_ID, scene=str(tiny), **HUGE).unwrapped
     env.reset(seed=1)
     observation, reward, terminated, truncated, info = env.step(np.ones(3, dtype=np.float32))
     assert truncated and not terminated and info["ended"].startswith("diverged: MuJoCo")
@@ -112,10 +113,11 @@ def test_force_mode_needs_drive_ratings_or_a_scale(tiny):
 
 def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
     n, seed, periods = 3, 20, 150
-    actions = np.random.default_rng(1).uniform(-1, 1, (periods, n, 3)).astype(np.float32)
-    actions[:, 0] = (1, 0, 0)  # sub-environment 0 leaves the envelope again and again
-    actions[5, 1] = np.nan  # and sub-environment 1 diverges, alone in its lockstep
-    envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny), **PUSH)
+    # PUSH's forces as shares of 1e300 N, so that an action of 1 makes MuJoCo fail.
+    actions = np.random.default_rng(1).uniform(-1, 1, (periods, n, 3)) * np.array([1e-293, 1e-292, 1e-292])
+    actions[:, 0] = (1e-293, 0, 0)  # sub-environment 0 leaves the envelope again and again
+    actions[5, 1] = 1.0  # and sub-environment 1 diverges, alone in its lockstep
+    envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny), **HUGE)
     assert isinstance(envs.unwrapped, bwr_twin.gym.ReclaimVectorEnv)
     observations, _ = envs.reset(seed=seed)
     (loop,) = envs.unwrapped.episodes.locksteps
@@ -125,7 +127,7 @@ def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
     ends, reasons = 0, {why for _, _, _, _, infos in vector if "ended" in infos for why in infos["ended"] if why}
     assert any(why.startswith("diverged") for why in reasons) and any(why.startswith("left") for why in reasons)
     for i in range(n):
-        env = gymnasium.make(ENV_ID, scene=str(tiny), **PUSH).unwrapped
+        env = gymnasium.make(ENV_ID, scene=str(tiny), **HUGE).unwrapped
         observation, _ = env.reset(seed=seed + i)
         assert np.array_equal(observation, observations[i])
         ended = False
@@ -172,3 +174,125 @@ def test_example_prints_return_and_errors(script):
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and bad.stderr.startswith("error: no_such_scene: scene file not found")
     assert len(bad.stderr.splitlines()) == 1
+
+
+# -- what the environment refuses, and what it takes ------------------------------------------
+
+@pytest.mark.parametrize("action, message", [
+    (np.array([np.nan, 0, 0], dtype=np.float32), r"\(short\.toml\): action\[0\] \(travel\) is nan: actions must be finite"),
+    (np.array([0, 0, np.inf]), r"action\[2\] \(luff\) is inf"),
+    ([0.0, -np.inf, 0.0], r"action\[1\] \(slew\) is -inf"),
+    (np.array([0.5j, 0, 0]), r"an action of complex numbers, expected real numbers of shape \(3,\)"),
+    (np.zeros(2), r"an action of shape \(2,\), expected \(3,\): travel, slew, luff"),
+    (np.zeros((1, 3)), r"an action of shape \(1, 3\), expected \(3,\)"),
+    (np.zeros(4, dtype=np.float32), r"an action of shape \(4,\)"),
+    ("abc", r"an action of shape \(\), expected \(3,\)"),
+    ([[0, 0], [0]], r"not an array of shape \(3,\)"),
+], ids=["nan", "inf", "-inf list", "complex", "short", "one row", "long", "string", "ragged"])
+def test_bad_actions_are_refused_naming_the_element_and_the_shape(tiny_env, action, message):
+    env = tiny_env
+    env.reset(seed=1)
+    before = env.episodes.observation.copy()
+    with pytest.raises(ValueError, match=message) as refused:
+        env.step(action)
+    assert str(refused.value).startswith(f"{ENV_ID} (short.toml): ")
+    assert np.array_equal(env.episodes.observation, before)  # nothing stepped
+    observation, reward, terminated, truncated, info = env.step(np.zeros(3))
+    assert not (terminated or truncated) and info["time"] == pytest.approx(env.control_period)
+
+
+def test_bad_actions_of_a_vector_env_name_the_sub_environment(tiny):
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, scene=str(tiny))
+    envs.reset(seed=1)
+    actions = np.zeros((2, 3), dtype=np.float32)
+    actions[1, 2] = np.nan
+    where = rf"{ENV_ID} \(short\.toml\), a vector of 2: "
+    with pytest.raises(ValueError, match=where + r"actions\[1, 2\] \(sub-environment 1, luff\) is nan"):
+        envs.step(actions)
+    for bad, shape in ((np.zeros(6), r"\(6,\)"), (np.zeros((3, 3)), r"\(3, 3\)"), (np.zeros(3), r"\(3,\)")):
+        with pytest.raises(ValueError, match=where + rf"an action of shape {shape}, expected \(2, 3\): one row "
+                           r"\(travel, slew, luff\) per sub-environment"):
+            envs.step(bad)
+    with pytest.raises(ValueError, match="complex"):
+        envs.step(np.zeros((2, 3), dtype=complex))
+    _, _, terminated, truncated, infos = envs.step(np.zeros((2, 3)))
+    assert not (terminated.any() or truncated.any()) and infos["time"] == pytest.approx([0.01, 0.01])
+
+
+@pytest.fixture
+def tiny_env(tiny):
+    return gymnasium.make(ENV_ID, scene=str(tiny)).unwrapped
+
+
+def test_every_seed_gymnasium_takes_runs(tiny_env, tiny):
+    """The twin keeps seeds as int64; seeds from 2**63 on are mapped into that range, each to its own."""
+    env = tiny_env
+    scene_seeds = []
+    for seed in (0, 2**63 - 1, 2**63, 2**64 - 1, 2**64, 10**30):
+        observation, info = env.reset(seed=seed)
+        assert observation in env.observation_space
+        assert env.step(np.zeros(3))[1] <= 0.0
+        scene_seeds.append(info["seed"])
+    assert scene_seeds[:2] == [0, 2**63 - 1]  # below 2**63 the scene seed is the seed itself
+    assert len(set(scene_seeds)) == len(scene_seeds) and all(0 <= s < 2**63 for s in scene_seeds)
+    assert env.reset(seed=2**64 - 1)[1]["seed"] == scene_seeds[3]  # and the same every time
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, scene=str(tiny))
+    _, infos = envs.reset(seed=2**64 - 1)  # sub-environment 1 gets 2**64
+    assert infos["seed"].tolist() == scene_seeds[3:5]
+
+
+def test_duration_cuts_episodes_short_in_both_kinds_of_env(tiny):
+    env = gymnasium.make(ENV_ID, scene=str(tiny), duration=0.5)
+    env.reset(seed=1)
+    for k in range(50):
+        _, _, terminated, truncated, info = env.step(np.zeros(3, dtype=np.float32))
+    assert truncated and not terminated and info["ended"] == "time limit" and k == 49
+    assert info["time"] == pytest.approx(0.5)
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, scene=str(tiny), duration=0.05)
+    envs.reset(seed=1)
+    ends = [envs.step(np.zeros((2, 3)))[3].tolist() for _ in range(6)]
+    assert ends == [[False, False]] * 4 + [[True, True], [False, False]]  # then the next-step autoreset
+    whole = gymnasium.make(ENV_ID, scene=str(tiny), duration=2.01).unwrapped  # the path's end comes first
+    assert whole.episodes.limit == 201
+    for duration, message in ((0, "duration must be a number of s > 0, got 0"),
+                              (float("nan"), "duration must be a number of s > 0"),
+                              ("5", "duration must be a number of s > 0, got '5'"),
+                              (0.001, r"duration 0\.001 s: shorter than one control period \(0\.01 s\)"),
+                              (3.0, r"duration 3 s: beyond the path of short\.toml \(2 s\), whose end terminates "
+                                    r"an episode after 201 control periods; give at most 2\.01 s")):
+        with pytest.raises(ValueError, match=message):
+            gymnasium.make(ENV_ID, scene=str(tiny), duration=duration)
+
+
+def test_the_env_cannot_be_pickled_or_copied_and_says_how_to_make_another(tiny):
+    import copy
+    import pickle
+
+    wrapped = gymnasium.make(ENV_ID, scene=str(tiny))
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, scene=str(tiny))
+    everything = (pickle.dumps, copy.copy, copy.deepcopy)
+    for thing, attempts, how in (
+            # copy.copy of gymnasium's wrapper is a second wrapper of the same environment: no copy of it.
+            (wrapped, (pickle.dumps, copy.deepcopy), rf"gymnasium\.make\('{ENV_ID}', \.\.\.\) and the same arguments"),
+            (wrapped.unwrapped, everything, "gymnasium.make"),
+            (envs, everything, rf"gymnasium\.make_vec\('{ENV_ID}', num_envs=2, \.\.\.\) and the same arguments")):
+        for attempt in attempts:
+            with pytest.raises(TypeError, match=rf"cannot be pickled or copied: it holds compiled MuJoCo models.*{how}"):
+                attempt(thing)
+
+
+def test_episodes_beyond_the_bounds_are_refused_with_the_estimate():
+    with pytest.raises(SceneError) as refused:  # the paper's 700 s at a 10 ns timestep: 7e10 physics steps
+        gymnasium.make(ENV_ID, scene="paper_individual_gains", overrides={"simulation.timestep": 1e-8})
+    message = str(refused.value)
+    assert re.match(r".*paper_individual_gains\.toml: would take more than 12 h: 1 run, 7e\+10 physics steps, "
+                    r"about \d+(\.\d+)? days", message), message
+    assert message.endswith(f"for one episode of {ENV_ID}; check the timestep and the via point times, or give a "
+                            "shorter duration")
+    with pytest.raises(SceneError, match="16 runs, 1.12e\\+12 physics steps"):
+        gymnasium.make_vec(ENV_ID, num_envs=16, scene="paper_individual_gains",
+                           overrides={"simulation.timestep": 1e-8})
+    # Five periods of it are minutes, not days: made (not stepped here).
+    short = gymnasium.make(ENV_ID, scene="paper_individual_gains", overrides={"simulation.timestep": 1e-8},
+                           duration=0.05)
+    assert short.unwrapped.episodes.limit == 5

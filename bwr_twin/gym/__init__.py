@@ -10,9 +10,8 @@ Importing this package registers the id. docs/gym.md has the contract.
 from gymnasium.envs.registration import register, registry
 
 from bwr_twin.gym.env import ReclaimEnv
+from bwr_twin.gym.spaces import ENV_ID
 from bwr_twin.gym.vector import ReclaimVectorEnv
-
-ENV_ID = "bwr_twin/Reclaim-v0"
 
 if ENV_ID not in registry:
     register(id=ENV_ID, entry_point="bwr_twin.gym.env:ReclaimEnv",

@@ -11,7 +11,8 @@
   so a = 0 is computed-torque feed-forward. `acceleration_scale` is a CP acceleration (m/s^2):
   itself on travel, divided by the boom length on slew and luff (rad/s^2).
 
-Actions outside [-1, 1] are clipped.
+Actions outside [-1, 1] are clipped; NaN, infinities, complex numbers and arrays of another
+shape are refused (`checked_actions`), never reshaped or turned into forces.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from bwr_twin.control.belief import Belief
 from bwr_twin.errors import ModelError
+from bwr_twin.gym.kernels import clipped_acceleration, clipped_force, first_non_finite
 from bwr_twin.gym.scales import at_cp
 from bwr_twin.model.machine import AXES
 from bwr_twin.sim.lockstep import Lockstep
@@ -34,6 +36,7 @@ class ForceDrive:
     """+-1 is the drive rating (or +-force_scale) of each axis."""
 
     def __init__(self, loop: Lockstep, force_scale: Sequence[float] | None):
+        self._force = np.zeros((1, 3))
         if force_scale is not None:
             scale = _positive("force_scale", force_scale, 3)
             self.low, self.high = scale, scale
@@ -46,6 +49,11 @@ class ForceDrive:
                 f"ctrlrange), and {', '.join(unrated)} have none: pass force_scale=(N, N m, N m)"
             )
         self.low, self.high = -limits[:, 0], limits[:, 1]
+
+    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray | None:
+        """One slot's (1, 3) forces of its (3,) float action, clipped, as `forces` gives them;
+        None if the action is not finite."""
+        return None if clipped_force(action, self.low, self.high, self._force) >= 0 else self._force
 
     def forces(self, action: np.ndarray, slots: np.ndarray, q: np.ndarray, qd: np.ndarray,
                qdd_ref: np.ndarray) -> np.ndarray:
@@ -61,6 +69,16 @@ class AccelerationDrive:
         self.scale = at_cp(scale, loop.machine)
         # One belief for every environment slot, reused across episodes: it holds no state.
         self.belief = Belief(loop.belief_machine, slots, nthread=nthread)
+        self._u = np.zeros((1, 3))
+
+    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray | None:
+        """One slot's (1, 3) forces of its (3,) float action, clipped, at the (1, 3) measured
+        state: the numbers `forces` gives (Belief.torque sums M u as it does); None if the action
+        is not finite."""
+        if clipped_acceleration(action, qdd_ref, self.scale, self._u) >= 0:
+            return None
+        self.belief.update(q, qd)
+        return self.belief.torque(self._u)
 
     def forces(self, action: np.ndarray, slots: np.ndarray, q: np.ndarray, qd: np.ndarray,
                qdd_ref: np.ndarray) -> np.ndarray:
@@ -81,6 +99,49 @@ def make_drive(mode: str, loop: Lockstep, slots: int, *, force_scale: Sequence[f
     if mode == "acceleration":
         return AccelerationDrive(loop, slots, acceleration_scale, nthread)
     raise ValueError(f"action_mode must be one of {', '.join(ACTION_MODES)}, got {mode!r}")
+
+
+def checked_actions(actions, shape: tuple[int, ...], where: str, rows: str | None = None) -> np.ndarray:
+    """`actions` as a float64 array of `shape`; ValueError naming `where` (the environment), the
+    element and the expected shape for anything else: another shape, complex numbers, NaN or
+    infinity. `rows` names what a row is, when there are rows (a vector environment's
+    sub-environments)."""
+    array = actions if isinstance(actions, np.ndarray) else _array(actions, shape, where)
+    expected = (f"{shape}: one row (travel, slew, luff) per {rows}" if rows else f"{shape}: travel, slew, luff")
+    if array.shape != shape:
+        raise ValueError(f"{where}: an action of shape {array.shape}, expected {expected}")
+    kind = array.dtype.kind
+    if kind not in "biuf":
+        what = "complex numbers" if kind == "c" else f"values of type {array.dtype}"
+        raise ValueError(f"{where}: an action of {what}, expected real numbers of shape {expected}")
+    if array.dtype not in _COMPILED:
+        array = array.astype(np.float64)
+    bad = first_non_finite(np.ascontiguousarray(array))
+    if bad >= 0:
+        index = np.unravel_index(bad, shape)
+        row = f"{rows} {index[0]}, " if rows else ""
+        name = f"action{'s' if rows else ''}[{', '.join(str(i) for i in index)}] ({row}{AXES[index[-1]]})"
+        raise ValueError(f"{where}: {name} is {array.flat[bad]}: actions must be finite (values beyond [-1, 1] are "
+                         "clipped)")
+    return array
+
+
+_COMPILED = (np.dtype(np.float64), np.dtype(np.float32))  # what the kernels take as they are
+
+
+def as_action(action, where: str) -> np.ndarray:
+    """A single environment's action as a (3,) float array for `force_one`, which checks it is
+    finite: an array of float32 or float64 as it is, anything else through `checked_actions`."""
+    if type(action) is np.ndarray and action.shape == (3,) and action.dtype in _COMPILED:
+        return action
+    return checked_actions(action, (3,), where)
+
+
+def _array(actions, shape: tuple[int, ...], where: str) -> np.ndarray:
+    try:
+        return np.asarray(actions)
+    except (ValueError, TypeError) as exc:  # ragged nesting
+        raise ValueError(f"{where}: an action that is not an array of shape {shape} ({exc})") from None
 
 
 def _positive(name: str, values: Sequence[float], size: int) -> np.ndarray:

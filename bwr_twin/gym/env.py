@@ -4,8 +4,8 @@ Each step is one control period of the scene (0.01 s for the shipped scenes): th
 the encoders and the reference (`bwr_twin.gym.scales`), its action sets the drive forces
 (`bwr_twin.gym.actions`), and it earns the negative weighted square of the true tracking error
 (`bwr_twin.gym.reward`). The episode terminates after the path's last period and is truncated
-when a joint leaves the machine's operating envelope or the simulation diverges. docs/gym.md
-has the whole contract.
+when a joint leaves the machine's operating envelope, the simulation diverges or `duration` s
+have passed. docs/gym.md has the whole contract.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from bwr_twin.gym.actions import DEFAULT_ACCELERATION_SCALE
+from bwr_twin.gym.actions import DEFAULT_ACCELERATION_SCALE, as_action
 from bwr_twin.gym.episodes import Episodes
 from bwr_twin.gym.reward import DEFAULT_WEIGHTS
-from bwr_twin.gym.spaces import action_space, episode_seed, observation_space
+from bwr_twin.gym.spaces import ENV_ID, action_space, episode_seed, observation_space
 from bwr_twin.shipped import DEFAULT_SCENE
 
 DEFAULT_ERROR_SCALE = 0.1  # m at the CP: the paper's controller keeps within 2 cm
@@ -38,6 +38,13 @@ class ReclaimEnv(gymnasium.Env):
         reward_weights: (3,) travel, slew, luff weights of the reward.
         overrides: scene keys to replace, as `load_scene` takes them (not `simulation.seed`,
             which each episode's seed sets).
+        duration: s an episode lasts at most, then truncated with info["ended"] "time limit";
+            None (default): the whole path.
+
+    Episodes beyond the twin's bounds (more than 12 h of computing, half of the memory, as
+    `bwr_twin.run` estimates a run) are refused when the environment is made. An environment
+    cannot be pickled or copied (it holds compiled MuJoCo models and a run under way): make
+    another with the same arguments.
 
     Attributes:
         scales: the observation's scales (`bwr_twin.gym.scales.Scales`), to read observations in SI.
@@ -52,10 +59,10 @@ class ReclaimEnv(gymnasium.Env):
                  force_scale: Sequence[float] | None = None,
                  acceleration_scale: float = DEFAULT_ACCELERATION_SCALE,
                  error_scale: float = DEFAULT_ERROR_SCALE, reward_weights: Sequence[float] = DEFAULT_WEIGHTS,
-                 overrides: Mapping[str, Any] | None = None):
+                 overrides: Mapping[str, Any] | None = None, duration: float | None = None):
         self.episodes = Episodes(scene, 1, action_mode=action_mode, force_scale=force_scale,
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
-                                 reward_weights=reward_weights, overrides=overrides, nthread=1)
+                                 reward_weights=reward_weights, overrides=overrides, nthread=1, duration=duration)
         self.scales = self.episodes.scales
         self.drive = self.episodes.drive
         self.control_period = self.episodes.period
@@ -69,14 +76,20 @@ class ReclaimEnv(gymnasium.Env):
         return self.episodes.observation[0].copy(), self._info()
 
     def step(self, action):
-        if not self.episodes.running()[0]:
+        episodes = self.episodes
+        action = as_action(action, episodes.where)
+        if not episodes.is_running(0):
             raise RuntimeError("the episode has ended (terminated or truncated): call reset() first")
-        outcome = self.episodes.step(np.asarray(action, dtype=float).reshape(1, 3))
+        reward, terminated, truncated, ended = episodes.step_one(action)
         info = self._info()
-        if 0 in outcome.ended:
-            info["ended"] = outcome.ended[0]
-        return (self.episodes.observation[0].copy(), float(outcome.reward[0]), bool(outcome.terminated[0]),
-                bool(outcome.truncated[0]), info)
+        if ended is not None:
+            info["ended"] = ended
+        return episodes.observation[0].copy(), reward, terminated, truncated, info
+
+    def __reduce_ex__(self, protocol):
+        raise TypeError(f"{ENV_ID} cannot be pickled or copied: it holds compiled MuJoCo models and a run under "
+                        f"way; make another with gymnasium.make({ENV_ID!r}, ...) and the same arguments "
+                        "(docs/gym.md)")
 
     def _info(self) -> dict[str, Any]:
         """time: s since the path's start; position_error: (3,) true reference - joint (m, rad);

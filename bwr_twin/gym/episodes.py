@@ -7,10 +7,15 @@ next episode in a new lockstep, with the other slots that ended in the same peri
 the old lockstep is left behind at zero force and dropped with that lockstep once no slot uses
 it. A run's result does not depend on which runs share its lockstep, so every episode is the
 one a single environment gives for the same seed and actions.
+
+A single environment steps its one slot through `step_one`: the same arithmetic in compiled
+kernels (bwr_twin.gym.kernels), without the bookkeeping of slots and groups.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,15 +23,21 @@ from typing import Any
 
 import numpy as np
 
-from bwr_twin.config.scene import load_scene
-from bwr_twin.errors import SceneError
-from bwr_twin.gym.actions import make_drive
+from bwr_twin.config.scene import Scene, load_scene
+from bwr_twin.errors import BwrError, SceneError
+from bwr_twin.gym import kernels
+from bwr_twin.gym.actions import checked_actions, make_drive
+from bwr_twin.gym.kernels import observe
 from bwr_twin.gym.reward import tracking_reward
-from bwr_twin.gym.scales import OBSERVATION_SIZE, Scales
+from bwr_twin.gym.scales import OBSERVATION_LIMIT, OBSERVATION_SIZE, Scales
+from bwr_twin.gym.spaces import ENV_ID
 from bwr_twin.model.machine import AXES, describe
 from bwr_twin.shipped import find_scene
+from bwr_twin.sim.budget import check_estimate, estimate
 from bwr_twin.sim.lockstep import Lockstep
 from bwr_twin.sim.plant import mujoco_warnings
+
+TIME_LIMIT = "time limit"  # info["ended"] of an episode cut short by `duration`
 
 
 class Group:
@@ -49,8 +60,8 @@ class Group:
 class Outcome:
     """What one period did to every slot: (slots,) arrays, zero and False for slots not stepped.
 
-    `ended` maps a slot whose episode ended to why: "path end", "left the operating envelope:
-    ..." or "diverged: ...".
+    `ended` maps a slot whose episode ended to why: "path end", "time limit", "left the
+    operating envelope: ..." or "diverged: ...".
     """
 
     reward: np.ndarray
@@ -69,13 +80,17 @@ class Episodes:
         error: (count, 3) each slot's true position error at that observation (m, rad).
         elapsed: (count,) s since the path's start at that observation.
         seed: (count,) the scene seed of each slot's episode.
+        limit: control periods an episode lasts at most (`duration`), or None: the path's.
+        where: the environment, as errors name it.
     """
 
     def __init__(self, scene: str | Path, count: int, *, action_mode: str, force_scale: Sequence[float] | None,
                  acceleration_scale: float, error_scale: float, reward_weights: Sequence[float],
-                 overrides: Mapping[str, Any] | None, nthread: int):
-        """Raises BwrError for a bad scene, path or model, ValueError for a bad argument."""
+                 overrides: Mapping[str, Any] | None, nthread: int, duration: float | None = None):
+        """Raises BwrError for a bad scene, path or model or for episodes beyond the twin's
+        bounds (bwr_twin.sim.budget), ValueError for a bad argument."""
         self.scene = find_scene(scene)
+        self.where = f"{ENV_ID} ({self.scene.name})"
         self.overrides = dict(overrides or {})
         self.nthread = nthread
         if not error_scale > 0:
@@ -88,6 +103,8 @@ class Episodes:
         if scene.reclaim is not None:
             raise SceneError(f"{scene.path}: bwr_twin/Reclaim-v0 follows a scene's [path]; this scene plans a "
                              "[reclaim], whose reference is decided as the run goes: give a scene with a [path]")
+        self.limit = _limit(scene, duration)
+        _check_budget(scene, count, self.limit)  # before the path is sampled: a via point at 1e9 s is refused
         first = Lockstep([scene], nthread=1, observe=False)
         self.scales = Scales.of(first, error_scale)
         self.period = first.period
@@ -96,10 +113,20 @@ class Episodes:
                                 acceleration_scale=acceleration_scale, nthread=nthread)
         self.count = count
         self.observation = np.zeros((count, OBSERVATION_SIZE), dtype=np.float32)
-        self.error = np.zeros((count, 3))
-        self.elapsed = np.zeros(count)
+        if count == 1:  # step_one's kernel writes them: views of one state array
+            self._state = state = np.zeros(kernels.ELAPSED + 1)
+            self.error, self._q, self._qd, self._qdd_ref = (
+                state[i:i + 3].reshape(1, 3) for i in (kernels.ERROR, kernels.MEASURED_Q, kernels.MEASURED_QD,
+                                                        kernels.REFERENCE_QDD))
+            self.elapsed = state[kernels.ELAPSED:kernels.ELAPSED + 1]
+            self._constants = np.concatenate([self.envelope.ravel(), self.scales.error, self.weights,
+                                              self.scales.offset, self.scales.divisor, [OBSERVATION_LIMIT]])
+            self._outside = np.zeros(3, dtype=bool)
+        else:
+            self.error = np.zeros((count, 3))
+            self.elapsed = np.zeros(count)
+            self._q, self._qd, self._qdd_ref = np.zeros((count, 3)), np.zeros((count, 3)), np.zeros((count, 3))
         self.seed = np.zeros(count, dtype=np.int64)
-        self._q, self._qd, self._qdd_ref = np.zeros((count, 3)), np.zeros((count, 3)), np.zeros((count, 3))
         self._groups: list[Group] = []
         self._group_of: list[Group | None] = [None] * count
         self._running = np.zeros(count, dtype=bool)
@@ -112,6 +139,9 @@ class Episodes:
     def running(self) -> np.ndarray:
         """(count,) bool: the slots whose episode goes on."""
         return self._running.copy()
+
+    def is_running(self, slot: int) -> bool:
+        return bool(self._running[slot])
 
     def start(self, slots: Sequence[int], seeds: Sequence[int]) -> None:
         """Start new episodes in `slots`, with these scene seeds, in one new lockstep."""
@@ -141,6 +171,35 @@ class Episodes:
                 self._advance(group, forces, outcome)
         return outcome
 
+    def step_one(self, action: np.ndarray) -> tuple[float, bool, bool, str | None]:
+        """`step` for one slot, running, under its (3,) float action (`as_action`): (reward,
+        terminated, truncated, why it ended or None), the numbers `step` gives. ValueError naming
+        the element if the action is not finite."""
+        loop = self._groups[0].loop
+        force = self.drive.force_one(action, self._q, self._qd, self._qdd_ref)
+        if force is None:
+            checked_actions(action, (3,), self.where)  # raises, naming the element
+        with mujoco_warnings():  # MuJoCo neither prints nor writes a log; a failure ends the run
+            loop.advance(force)
+        k = loop.k
+        q_measured, qd_measured = loop.measure()
+        q_desired, qd_desired, qdd_desired = loop.path
+        failed = bool(loop.failures)
+        status = kernels.finish_one(loop.q_true, failed, q_desired, qd_desired, qdd_desired, min(k, loop.samples - 1),
+                                    q_measured, qd_measured, k * loop.period, self._constants, self._state,
+                                    self._outside, self.observation)
+        reward = float(self._state[kernels.REWARD])
+        if not (status or failed or loop.done or k == self.limit):
+            return reward, False, False, None
+        self._leave(0)
+        if failed or status & kernels.NOT_FINITE:
+            return reward, False, True, f"diverged: {loop.failures.get(0, 'non-finite state')}"
+        if loop.done:
+            return reward, True, False, "path end"
+        if status & kernels.OUTSIDE:
+            return reward, False, True, _left(loop.q_true[0], self._outside)
+        return reward, False, True, TIME_LIMIT
+
     def _advance(self, group: Group, forces: np.ndarray, outcome: Outcome) -> None:
         """Advance one lockstep a period under the (count, 3) forces; its slots' share of `outcome`."""
         loop, runs, slots = group.loop, group.runs, group.live_slots
@@ -153,7 +212,8 @@ class Episodes:
             failed = np.isin(runs, list(loop.failures)) | ~np.isfinite(q).all(axis=1)
         outside = (q < self.envelope[:, 0]) | (q > self.envelope[:, 1])
         error = loop.path[0][min(loop.k, loop.samples - 1)] - q
-        ending = failed.any() or outside.any() or loop.done
+        limited = loop.k == self.limit
+        ending = failed.any() or outside.any() or loop.done or limited
         if ending:
             error[failed] = self.error[slots[failed]]  # a diverged state has no error: keep the last
         outcome.reward[slots] = tracking_reward(error, self.scales.error, self.weights)
@@ -162,7 +222,7 @@ class Episodes:
         if not ending:
             return
         terminated = np.full(len(runs), loop.done) & ~failed
-        truncated = (failed | outside.any(axis=1)) & ~terminated
+        truncated = (failed | outside.any(axis=1) | limited) & ~terminated
         outcome.terminated[slots], outcome.truncated[slots] = terminated, truncated
         for i in np.flatnonzero(terminated | truncated):
             run, slot = int(runs[i]), int(slots[i])
@@ -170,9 +230,10 @@ class Episodes:
                 outcome.ended[slot] = f"diverged: {loop.failures.get(run, 'non-finite state')}"
             elif terminated[i]:
                 outcome.ended[slot] = "path end"
+            elif outside[i].any():
+                outcome.ended[slot] = _left(q[i], outside[i])
             else:
-                axes = ", ".join(f"{AXES[j]} = {describe(j, q[i, j])}" for j in np.flatnonzero(outside[i]))
-                outcome.ended[slot] = f"left the operating envelope: {axes}"
+                outcome.ended[slot] = TIME_LIMIT
             self._leave(slot)
 
     def _observe(self, group: Group, runs: np.ndarray) -> None:
@@ -184,8 +245,11 @@ class Episodes:
         slots = group.slots[runs]
         self._q[slots], self._qd[slots], self._qdd_ref[slots] = q[runs], qd[runs], qdd_desired[k]
         self.elapsed[slots] = loop.k * loop.period
-        self.observation[slots] = self.scales.observe(q[runs], qd[runs], q_desired[k], qd_desired[k],
-                                                      qdd_desired[k], loop.k * loop.period)
+        observation = np.empty((len(runs), OBSERVATION_SIZE), dtype=np.float32)
+        scales = self.scales
+        observe(q[runs], qd[runs], q_desired[k], qd_desired[k], qdd_desired[k], loop.k * loop.period, scales.offset,
+                scales.divisor, OBSERVATION_LIMIT, observation)
+        self.observation[slots] = observation
 
     def _leave(self, slot: int) -> None:
         """End `slot`'s episode: its run stays behind in its lockstep, dropped once none is live."""
@@ -197,3 +261,46 @@ class Episodes:
         self._running[slot] = False
         if not len(group.runs):
             self._groups.remove(group)
+
+
+def _left(q: np.ndarray, outside: np.ndarray) -> str:
+    axes = ", ".join(f"{AXES[j]} = {describe(j, q[j])}" for j in np.flatnonzero(outside))
+    return f"left the operating envelope: {axes}"
+
+
+def _limit(scene: Scene, duration: float | None) -> int | None:
+    """Control periods of an episode of `duration` s (None: the whole path); ValueError if it is
+    not a number of s > 0 within the path."""
+    if duration is None:
+        return None
+    via = scene.trajectory.via_points
+    path = via[-1].t - via[0].t
+    period = scene.simulation.control_period
+    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(duration) or duration <= 0:
+        raise ValueError(f"duration must be a number of s > 0, got {duration!r}")
+    if duration > path + period:  # the path's last period ends at path + period
+        raise ValueError(f"duration {duration:g} s: beyond the path of {scene.path.name} ({path:g} s), whose end "
+                         f"terminates an episode after {round(path / period) + 1} control periods; give at most "
+                         f"{path + period:g} s (or no duration: the whole path)")
+    periods = round(duration / period)
+    if periods < 1:
+        raise ValueError(f"duration {duration:g} s: shorter than one control period ({period:g} s)")
+    return periods
+
+
+def _check_budget(scene: Scene, count: int, limit: int | None) -> None:
+    """BwrError naming the scene and the estimate if one episode of every slot would go beyond
+    the twin's bounds (more than 12 h, half of the memory), as `bwr_twin.run` refuses a run."""
+    cost = estimate([scene] * count, chunk=count)
+    if limit is not None:  # a shorter episode: its share of the path's periods and steps
+        via = scene.trajectory.via_points
+        share = min(1.0, limit * scene.simulation.control_period / max(via[-1].t - via[0].t, 1e-300))
+        cost = dataclasses.replace(cost, physics_steps=cost.physics_steps * share, seconds=cost.seconds * share)
+    cost = dataclasses.replace(cost, disk_bytes=0.0)  # an environment writes nothing
+    try:
+        check_estimate(cost, where=scene.path, out_dir=Path.cwd(), force=False)
+    except BwrError as exc:
+        text = str(exc).split("; check the")[0]
+        raise SceneError(f"{text} for one episode of {ENV_ID}; check the timestep and the via point times, "
+                         "or give a shorter duration") from None

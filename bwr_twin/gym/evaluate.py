@@ -24,7 +24,8 @@ class EpisodeSummary:
         episode_return: the sum of the rewards.
         steps: control periods stepped; simulated: s of path they cover.
         max_position_error: (3,) largest |reference - true joint| per axis (m, rad).
-        ended: why the episode ended ("path end", ...), or "time limit" for a TimeLimit wrapper.
+        ended: why the episode ended ("path end", "time limit", ...); "time limit" too for a
+            gymnasium TimeLimit wrapper.
     """
 
     episode_return: float
@@ -58,7 +59,7 @@ def episode_command(description: str, make_policy: PolicyFactory, argv: list[str
     """The examples' command line: `--scene`, `--seed`, `--duration`. Runs one episode of the
     policy `make_policy(env, seed)` gives, in acceleration mode, and prints its summary; a bad
     scene gets one line and exit status 2."""
-    from bwr_twin.errors import exit_status
+    from bwr_twin.errors import BwrError, exit_status
 
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--scene", default="paper_individual_gains", help="scene file or shipped scene name")
@@ -69,10 +70,11 @@ def episode_command(description: str, make_policy: PolicyFactory, argv: list[str
         parser.error(f"--duration must be > 0 s, got {args.duration}")
 
     def run() -> int:
-        env = gymnasium.make("bwr_twin/Reclaim-v0", scene=args.scene, action_mode="acceleration")
-        if args.duration is not None:
-            steps = max(1, round(args.duration / env.unwrapped.control_period))
-            env = gymnasium.wrappers.TimeLimit(env, max_episode_steps=steps)
+        try:
+            env = gymnasium.make("bwr_twin/Reclaim-v0", scene=args.scene, action_mode="acceleration",
+                                 duration=args.duration)
+        except ValueError as exc:  # a duration beyond the path: one line, as a bad scene gets
+            raise BwrError(f"--{exc}") from None
         start = time.perf_counter()
         summary = run_episode(env, make_policy(env, args.seed), seed=args.seed)
         print("\n".join(summary.lines()))

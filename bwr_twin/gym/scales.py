@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bwr_twin.errors import ModelError
+from bwr_twin.gym.kernels import observe
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.sim.lockstep import Lockstep
 
@@ -88,16 +89,23 @@ class Scales:
         return cls(envelope.mean(axis=1), half_width, velocity, acceleration,
                    at_cp(error_scale, loop.machine), duration)
 
+    @property
+    def offset(self) -> np.ndarray:
+        """(19,) what each entry subtracts, in the layout's order."""
+        return self._offset
+
+    @property
+    def divisor(self) -> np.ndarray:
+        """(19,) what each entry is divided by, in the layout's order."""
+        return self._divisor
+
     def observe(self, q: np.ndarray, qd: np.ndarray, q_ref: np.ndarray, qd_ref: np.ndarray,
                 qdd_ref: np.ndarray, elapsed: float) -> np.ndarray:
         """(runs, 19) float32 observations of (runs, 3) measured and (3,) reference states,
-        `elapsed` s after the path's start."""
-        raw = np.empty((len(q), OBSERVATION_SIZE))
-        raw[:, POSITION], raw[:, VELOCITY] = q, qd
-        raw[:, REFERENCE_POSITION.start:REFERENCE_ACCELERATION.stop] = np.concatenate([q_ref, qd_ref, qdd_ref])
-        raw[:, ERROR] = q_ref - q
-        raw[:, TIME] = elapsed
-        obs = np.divide(np.subtract(raw, self._offset, out=raw), self._divisor, out=raw)
-        np.maximum(obs, -OBSERVATION_LIMIT, out=obs)  # not np.clip: a third of the cost on (1, 19)
-        return np.minimum(obs, OBSERVATION_LIMIT, out=obs).astype(np.float32)
+        `elapsed` s after the path's start: (entry - offset) / divisor, clipped (bwr_twin.gym.kernels)."""
+        out = np.empty((len(q), OBSERVATION_SIZE), dtype=np.float32)
+        observe(np.asarray(q, dtype=float), np.asarray(qd, dtype=float), np.asarray(q_ref, dtype=float),
+                np.asarray(qd_ref, dtype=float), np.asarray(qdd_ref, dtype=float), float(elapsed), self._offset,
+                self._divisor, OBSERVATION_LIMIT, out)
+        return out
 

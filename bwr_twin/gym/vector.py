@@ -23,18 +23,19 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from bwr_twin.gym.actions import DEFAULT_ACCELERATION_SCALE
+from bwr_twin.gym.actions import DEFAULT_ACCELERATION_SCALE, checked_actions
 from bwr_twin.gym.env import DEFAULT_ERROR_SCALE
 from bwr_twin.gym.episodes import Episodes
 from bwr_twin.gym.reward import DEFAULT_WEIGHTS
-from bwr_twin.gym.spaces import action_space, episode_seed, observation_space
+from bwr_twin.gym.spaces import ENV_ID, action_space, episode_seed, observation_space
 from bwr_twin.shipped import DEFAULT_SCENE
 
 
 class ReclaimVectorEnv(VectorEnv):
     """`num_envs` sub-environments on one lockstep. Arguments as `ReclaimEnv`'s, and `nthread`,
     MuJoCo's threads (0: all cores, never more than num_envs). Infos hold, per sub-environment,
-    `time` (s), `position_error` (3,) (m, rad), `seed`, and `ended` where an episode ended."""
+    `time` (s), `position_error` (3,) (m, rad), `seed`, and `ended` where an episode ended.
+    Actions are (num_envs, 3), finite; it cannot be pickled or copied, as `ReclaimEnv`."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
@@ -42,13 +43,14 @@ class ReclaimVectorEnv(VectorEnv):
                  force_scale: Sequence[float] | None = None,
                  acceleration_scale: float = DEFAULT_ACCELERATION_SCALE,
                  error_scale: float = DEFAULT_ERROR_SCALE, reward_weights: Sequence[float] = DEFAULT_WEIGHTS,
-                 overrides: Mapping[str, Any] | None = None, nthread: int = 0):
+                 overrides: Mapping[str, Any] | None = None, nthread: int = 0, duration: float | None = None):
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.num_envs = num_envs
         self.episodes = Episodes(scene, num_envs, action_mode=action_mode, force_scale=force_scale,
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
-                                 reward_weights=reward_weights, overrides=overrides, nthread=nthread)
+                                 reward_weights=reward_weights, overrides=overrides, nthread=nthread,
+                                 duration=duration)
         self.scales = self.episodes.scales
         self.drive = self.episodes.drive
         self.control_period = self.episodes.period
@@ -76,12 +78,19 @@ class ReclaimVectorEnv(VectorEnv):
 
     def step(self, actions):
         restart = np.flatnonzero(self._autoreset)
-        outcome = self.episodes.step(np.asarray(actions, dtype=float).reshape(self.num_envs, 3))
+        actions = checked_actions(actions, (self.num_envs, 3), f"{self.episodes.where}, a vector of {self.num_envs}",
+                                  rows="sub-environment")
+        outcome = self.episodes.step(actions)
         if len(restart):
             self.episodes.start(restart, [episode_seed(self._generators[i], None) for i in restart])
         self._autoreset = outcome.terminated | outcome.truncated
         return (self.episodes.observation.copy(), outcome.reward, outcome.terminated, outcome.truncated,
                 self._infos(outcome.ended))
+
+    def __reduce_ex__(self, protocol):
+        raise TypeError(f"a vector environment of {ENV_ID} cannot be pickled or copied: it holds compiled MuJoCo "
+                        f"models and runs under way; make another with gymnasium.make_vec({ENV_ID!r}, "
+                        f"num_envs={self.num_envs}, ...) and the same arguments (docs/gym.md)")
 
     def _infos(self, ended: dict[int, str]) -> dict[str, Any]:
         everyone = np.ones(self.num_envs, dtype=bool)
