@@ -32,6 +32,10 @@ class SimulationError(BwrError):
     """A run that diverged or that MuJoCo warned about."""
 
 
+class PluginError(BwrError):
+    """An engineer's controller or rate control raised, or returned what it may not."""
+
+
 def exit_status(command: Callable[[], int], *, interrupted: str = "interrupted: nothing written") -> int:
     """Run a command line's work and return its exit status: a BwrError is one line on stderr
     and status 2, Ctrl-C the `interrupted` note and 130."""

@@ -558,6 +558,9 @@ def _build_controller(table: Any, path: Path, where: str) -> ControllerSection:
         getattr(settings, "validate", lambda: None)()
     except SettingsError as exc:
         raise SceneError(f"{path}: '{where}.{exc.key}' {exc.message}") from None
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's validate(): say whose
+        raise SceneError(f"{path}: controller {type_name}: {cls.__name__}.Settings.validate() raised "
+                         f"{type(exc).__name__}" + (f": {exc}" if str(exc) else "")) from None
     return ControllerSection(type_name, settings)
 
 

@@ -16,22 +16,25 @@ read-only views. Each period's raw signals go into the observer's rows
 
 from __future__ import annotations
 
+import math
 import os
 import types
 from collections.abc import Callable, Sequence
 
+import numba
 import numpy as np
 
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
 from bwr_twin.errors import BwrError, SimulationError
-from bwr_twin.model.machine import Machine
+from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
+from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.sim.record import ReclaimRecord, RunResult
 from bwr_twin.sim.tracking import BenchTracking, PathTracking
 from bwr_twin.stockpile.reclaim import Reclaim
@@ -112,18 +115,25 @@ def simulate_lockstep(
     (the others go on). Raises BwrError if the path or a model is bad: that fails every run.
     """
     loop = Lockstep(scenes, nthread=nthread, pile_frame_period=pile_frame_period)
-    controller = controller_class(scenes[0].controller.type)(
-        loop.controller_context(), [s.controller.settings for s in scenes]
-    )
+    type_name = scenes[0].controller.type
+    cls = controller_class(type_name)
+    name = describe(type_name, cls)
+    label = f"{scenes[0].path}: controller {name}"  # an engineer's failures are named as theirs
+    controller = construct(label, cls, loop.controller_context(), [s.controller.settings for s in scenes])
     loop.record_controller(controller)
+    loop.command_source = f"controller {name}: compute()"
     measure, reference_now, advance, compute = loop.measure, loop.reference_now, loop.advance, controller.compute
+    shape, period = (loop.runs, 3), loop.period
     with mujoco_warnings():
         while not loop.done:
             q_measured, qd_measured = measure()
             q_ref, qd_ref, qdd_ref = reference_now()
-            advance(compute(q_measured, qd_measured, q_ref, qd_ref, qdd_ref, loop.alive))
+            time = loop.k * period
+            command = call(label, compute, "compute", time, q_measured, qd_measured, q_ref, qd_ref, qdd_ref,
+                           loop.alive)
+            advance(checked(label, "compute", command, shape, time))
             if progress is not None and loop.k % HEALTH_CHECK_EVERY == 0:
-                progress(loop.k * loop.period, loop.duration)
+                progress(loop.k * period, loop.duration)
     return loop.results()
 
 
@@ -184,6 +194,8 @@ class Lockstep:
             reclaim=self.reclaim is not None)
         observer.q[0], observer.qd[0] = plant.qpos, plant.qvel  # the first period's start
         self._controller: Controller | None = None  # whose declared signals are recorded
+        self.command_source = "the drive forces given"  # who computes them, for messages
+        self._stopped: set[int] = set()  # runs stopped for non-finite drive forces
         # What drivers may read: views that cannot be written.
         self.q_true, self.qd_true, self.drive_force = (_read_only(a) for a in (plant.qpos, plant.qvel,
                                                                                plant.drive_force))
@@ -240,6 +252,8 @@ class Lockstep:
         k, observer, plant, tracking = self.k, self._observer, self._plant, self.tracking
         row = observer.rows[observer.row]
         row.command[...] = command
+        if not _all_finite(row.command):
+            self._stop_non_finite(row.command)
         disturbance = row.disturbance
         disturbance[...] = self._disturbances.forces.sample(k)
         phase = tracking.phase()
@@ -282,6 +296,15 @@ class Lockstep:
                 observer.flush()
             plant.check_health()
 
+    def _stop_non_finite(self, command: np.ndarray) -> None:
+        """Stop the runs whose drive forces are not finite: theirs, not the plant's, failure."""
+        for run in np.flatnonzero(~np.isfinite(command).all(axis=1)):
+            if run in self.failures:
+                continue
+            axis = int(np.flatnonzero(~np.isfinite(command[run]))[0])
+            self._stopped.add(int(run))
+            self._plant.fail(int(run), f"{self.command_source} gave {command[run, axis]} for {AXES[axis]}")
+
     def results(self) -> list[RunResult | SimulationError]:
         """Each run's result, or the SimulationError of a run that diverged; once `done`."""
         if not self.done:
@@ -291,6 +314,9 @@ class Lockstep:
         recorder, metrics = self._observer.recorder, self._observer.metrics
         results: list[RunResult | SimulationError] = []
         for run, scene in enumerate(self.scenes):
+            if run in self._stopped:
+                results.append(SimulationError(f"{scene.path}: {self.failures[run]}; the run stopped there"))
+                continue
             if run in self.failures:
                 results.append(SimulationError(
                     f"{scene.path}: the simulation diverged ({self.failures[run]}); try smaller gains or timestep"
@@ -317,6 +343,14 @@ class Lockstep:
                 result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
             results.append(result)
         return results
+
+
+@numba.njit(cache=True)
+def _all_finite(array: np.ndarray) -> bool:  # pragma: no cover - compiled
+    for value in array.flat:
+        if not math.isfinite(value):
+            return False
+    return True
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

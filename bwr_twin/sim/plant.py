@@ -97,7 +97,7 @@ class Plant:
                 self.batch.step(self.alive, nstep=steps)
             except BatchError as exc:
                 for run in exc.ids:
-                    self._fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
+                    self.fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
         if np.count_nonzero(self._warning_counts):  # cheap each period, so a failure's time is exact
             self.check_health()
 
@@ -110,9 +110,10 @@ class Plant:
             if run in self.failures:
                 continue
             kinds = [_WARNINGS.get(mujoco.mjtWarning(w), mujoco.mjtWarning(w).name) for w in np.flatnonzero(warned[run])]
-            self._fail(int(run), f"MuJoCo: {', '.join(kinds)}" if kinds else "non-finite state")
+            self.fail(int(run), f"MuJoCo: {', '.join(kinds)}" if kinds else "non-finite state")
 
-    def _fail(self, run: int, reason: str) -> None:
+    def fail(self, run: int, reason: str) -> None:
+        """Stop stepping `run`, for `reason` (the time is added); the others go on."""
         self.failures[run] = f"{reason}, near t = {self.batch.time[run]:.2f} s"
         self.alive = np.array([r for r in range(self.batch.nsim) if r not in self.failures], dtype=np.int64)
 

@@ -18,12 +18,13 @@ import numpy as np
 from bwr_twin.config.plugins import rate_control_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.rate import RateSignals, WheelCalibration
-from bwr_twin.errors import EnvelopeError, UnreachableError
+from bwr_twin.errors import EnvelopeError, PluginError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_scene
 from bwr_twin.planning.follower import BenchReference, PathReference, Phase
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sim.outcome import PlanOutcome
+from bwr_twin.sim.plugins import call, checked, construct, describe
 
 
 class PathTracking:
@@ -101,7 +102,9 @@ class BenchTracking:
             bulk_density=np.array([s.stockpile.bulk_density for s in scenes]),
         )
         targets = np.array([s.reclaim.target_rate for s in scenes])
-        self._rate_control = rate_control_class(control.type)(control, targets, period, wheel)
+        cls = rate_control_class(control.type)
+        self._label = f"{scene.path}: rate control {describe(control.type, cls)}"  # an engineer's failures are theirs
+        self._rate_control = construct(self._label, cls, control, targets, period, wheel)
         self.outcome = PlanOutcome(self.plan, targets, machine.wheel.bucket_interval, period)
 
     def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -118,8 +121,12 @@ class BenchTracking:
         recorded), else None."""
         reference = self._reference
         self.outcome.add(k - 1, phase, reclaim)
-        trim = self._rate_control.trim(RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting,
-                                                   phase.steady))
+        time = (k - 1) * self._period
+        signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
+        trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
+                       (len(signals.belt_rate),), time)
+        if not np.isfinite(trim).all():
+            raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
         stop, stopping = self._stop, None
         if stop.time is not None and k * self._period >= stop.time - 1e-9:
             stopping = np.ones(len(trim), dtype=bool)

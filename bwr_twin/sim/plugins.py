@@ -1,0 +1,72 @@
+"""An engineer's controller or rate control, called so that its failures are its own.
+
+Whatever a plug-in raises (SystemExit included) becomes one line that names its class, its file
+and the call, what it raised and when (simulated time): a `PluginError`. What it returns is
+checked before it reaches the plant: the wrong shape, None, strings or complex numbers fail the
+lockstep the same way; a non-finite value fails only the runs it was returned for (the loop
+stops them, `Lockstep.advance`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from bwr_twin.config.plugins import is_file_reference
+from bwr_twin.errors import PluginError
+
+
+def describe(type_name: str, cls: type) -> str:
+    """How a message names a plug-in: 'my_pid.py:MyPid' as the scene does, or 'pid (PidController)'."""
+    return type_name if is_file_reference(type_name) else f"{type_name} ({cls.__name__})"
+
+
+def construct(label: str, cls: type, *args: Any) -> Any:
+    """cls(*args); PluginError naming `label` if its __init__ raises."""
+    try:
+        return cls(*args)
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
+        raise PluginError(f"{label}: {cls.__name__}.__init__() raised {_raised(exc)}") from None
+
+
+def call(label: str, method: Callable, name: str, time: float, *args: Any) -> Any:
+    """method(*args); PluginError naming `label`, the call and the simulated `time` (s) if it raises."""
+    try:
+        return method(*args)
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
+        raise PluginError(f"{label}: {name}() raised {_raised(exc)} at t = {time:.2f} s") from None
+
+
+def checked(label: str, name: str, value: Any, shape: tuple[int, ...], time: float) -> np.ndarray:
+    """`value` as a float64 array of `shape`; PluginError naming what it was instead."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape:
+        return value  # the way every well-behaved plug-in returns
+    what = None
+    if value is None:
+        what = "None"
+    else:
+        try:
+            array = np.asarray(value)
+        except Exception:  # noqa: BLE001 - whatever it is, it is not an array of numbers
+            array = None
+        if array is None or array.dtype.kind not in "fiu":
+            kind = "complex numbers" if array is not None and array.dtype.kind == "c" else type(value).__name__
+            what = f"{kind} ({_short(value)})"
+        elif array.shape != shape:
+            what = f"an array of shape {array.shape}"
+        else:
+            return array.astype(np.float64)
+    expected = "x".join(map(str, shape))
+    raise PluginError(f"{label}: {name}() returned {what} at t = {time:.2f} s; it must return a "
+                      f"({expected}) array of numbers")
+
+
+def _raised(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
