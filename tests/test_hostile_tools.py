@@ -1,0 +1,280 @@
+"""Hostile input to the tools around a run, through their command lines: tuning, the .fis tools,
+compare, replay input, file encodings and argument errors (docs/reliability.md, classes 8-13).
+
+Each refusal exits with status 2 and one line naming the file, key, option or path and the
+limit, without a traceback, and leaves every file of the folder as it was. The accepted cases
+(one tuned parameter, a byte-order mark, CRLF line ends) check that the work is done.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pickle
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+from conftest import write_short_scene
+from test_hostile import assert_refused, cli, snapshot
+
+from bwr_twin.results.ownership import mark
+from bwr_twin.shipped import RULE_BASES, SCENES
+
+ROOT = Path(__file__).resolve().parents[1]
+TIPPER = ROOT / "tests" / "assets" / "tipper.fis"
+BOM = b"\xef\xbb\xbf"
+
+TUNING = """scene = "short.toml"
+[parameters]
+"controller.output_gain.travel" = { low = 0.002, high = 0.2, scale = "log" }
+"controller.input_scale_e" = { low = 10.0, high = 200.0 }
+[seeds]
+training = [1]
+held_out = [11]
+[objective]
+position_error_rms = 1.0
+[budget]
+evaluations = 5
+[optimizer]
+population = 4
+"""
+SECOND = '"controller.input_scale_e" = { low = 10.0, high = 200.0 }'
+
+
+def tuning(tmp: Path, old: str = "", new: str = "") -> str:
+    (tmp / "tune.toml").write_text(TUNING.replace(old, new) if old else TUNING)
+    return "tune.toml"
+
+
+def tuned_folder(tmp: Path, damage) -> Path:
+    """--out of this tuning as a killed tuning left it, its tuner_state.pkl damaged by `damage`."""
+    text = (tmp / tuning(tmp)).read_text()
+    (tmp / "out").mkdir()
+    mark(tmp / "out", "tuning", file="tune.toml", tuning=hashlib.sha256(text.encode()).hexdigest())
+    damage(tmp / "out" / "tuner_state.pkl")
+    return tmp / "out"
+
+
+def notes(tmp: Path, name: str) -> Path:
+    """An engineer's file that mentions the twin's writers, but that the twin did not write."""
+    (tmp / name).write_bytes(b"% my notes on bwr_twin.fis and bwr_twin.replay\n"
+                             b'<meta name="generator" content="bwr_twin.replay">\n')
+    return tmp / name
+
+
+def damaged_run(tmp: Path, run: Path, row: int = 0, column: str = "", value: str = "", *, header=None,
+                cut: int | None = None, scene=None) -> Path:
+    """A copy of `run` with one value, the header, the end of its time series or its scene changed."""
+    folder = tmp / "damaged"
+    shutil.copytree(run, folder)
+    lines = (folder / "timeseries.csv").read_text().splitlines()
+    if column:
+        cells = lines[row].split(",")
+        cells[lines[0].split(",").index(column)] = value
+        lines[row] = ",".join(cells)
+    if header:
+        lines[0] = lines[0].replace(*header)
+    if cut is not None:
+        lines = lines[:cut] + [lines[cut][:30]]
+    (folder / "timeseries.csv").write_text("\n".join(lines) + "\n")
+    if scene:
+        recorded = json.loads((folder / "scene.json").read_text())
+        recorded["trajectory"]["via_points"][1]["p"][0] += 1.0
+        (folder / "scene.json").write_text(json.dumps(recorded))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory) -> Path:
+    """A run directory of the 20 s scene, no figures: what the replay cases damage."""
+    folder = tmp_path_factory.mktemp("run")
+    write_short_scene(folder)
+    proc = cli("run", "short.toml", "--out", "r", "--no-plots", cwd=folder)
+    assert proc.returncode == 0, proc.stderr
+    return folder / "r"
+
+
+# (id, command, argument builder(tmp, short run) -> arguments, pattern of the one error line)
+REFUSALS = [
+    # 8. Tuning
+    ("tune-damaged-state-another-object", "tune",
+     lambda t, r: ["tune.toml", "--out", tuned_folder(t, lambda p: p.write_bytes(pickle.dumps({"a": 1})))],
+     r"out/tuner_state.pkl: damaged, not a state this tuner saved \(it holds a dict.*remove it"),
+    ("tune-damaged-state-bytes", "tune",
+     lambda t, r: ["tune.toml", "--out", tuned_folder(t, lambda p: p.write_bytes(b"\x80\x04\x95 not a pickle"))],
+     r"out/tuner_state.pkl: damaged, not a state this tuner saved .*or choose another --out"),
+    ("tune-damaged-state-a-folder", "tune",
+     lambda t, r: ["tune.toml", "--out", tuned_folder(t, lambda p: p.mkdir())],
+     r"out/tuner_state.pkl: damaged, not a state this tuner saved \(Is a directory\)"),
+    ("tune-control-period", "tune",
+     lambda t, r: [tuning(t, SECOND, '"simulation.control_period" = { low = 0.005, high = 0.02 }'), "--out", "o"],
+     r"tune.toml: 'parameters.simulation.control_period' cannot be tuned: 'simulation' sets the loop's timing"),
+    ("tune-a-file-key", "tune",
+     lambda t, r: [tuning(t, SECOND, '"controller.rule_base" = { low = 0.0, high = 1.0 }'), "--out", "o"],
+     r"'parameters.controller.rule_base' is not a number \('.*paper_table2.toml'\) in the base scene"),
+    ("tune-unknown-key", "tune",
+     lambda t, r: [tuning(t, "input_scale_e", "input_scale_x"), "--out", "o"],
+     r"'parameters.controller.input_scale_x' names no key of the base scene; its numbers that can be tuned: "
+     r".*controller.input_scale_e, .*plant.air_density"),
+    ("tune-unknown-axis", "tune",
+     lambda t, r: [tuning(t, "output_gain.travel", "output_gain.swing"), "--out", "o"],
+     r"'parameters.controller.output_gain.swing' names no axis of the per-axis list 'controller.output_gain': "
+     r"tune controller.output_gain.travel, controller.output_gain.slew, controller.output_gain.luff"),
+    ("tune-bound-breaks-a-rule", "tune",
+     lambda t, r: [tuning(t, SECOND, '"disturbance.hold_time" = { low = 0.0, high = 1.0 }'), "--out", "o"],
+     r"'parameters.disturbance.hold_time' at its bound 0 makes a scene that breaks a rule \('disturbance.hold_time' "
+     r"must be > 0"),
+    ("tune-budget-of-1e8", "tune",
+     lambda t, r: [tuning(t, "evaluations = 5", "evaluations = 100000000"), "--out", "o"],
+     r"tune.toml: 'budget.evaluations' \(100000000\) x 1 training seeds: would take more than 12 h: .*or pass --force"),
+    # 9. Ownership
+    ("fis-convert-over-notes", "fis",
+     lambda t, r: ["convert", RULE_BASES / "paper_table2.toml", notes(t, "notes.fis"), "--overwrite"],
+     r"notes.fis: exists and was not written by bwr_twin.fis; it is left alone"),
+    ("fis-convert-over-toml-notes", "fis",
+     lambda t, r: ["convert", TIPPER, notes(t, "notes.toml"), "--overwrite"],
+     r"notes.toml: exists and was not written by bwr_twin.fis"),
+    ("fis-surface-over-notes", "fis",
+     lambda t, r: ["surface", TIPPER, "--out", notes(t, "notes.png"), "--overwrite"],
+     r"notes.png: exists and was not written by bwr_twin.fis"),
+    ("export-over-html-mentioning-the-tag", "replay",
+     lambda t, r: ["short.toml", "--export", notes(t, "notes.html")],
+     r"notes.html: exists and was not exported by the twin"),
+    # 10. Runaway work before any estimate
+    ("compare-1e8-seeds", "compare",
+     lambda t, r: ["short.toml", "--controllers", "short.toml", SCENES / "pid_paper.toml", "--seeds", 100_000_000,
+                   "--out", "c"],
+     r"--seeds 100000000: 2 controllers x 100000000 seeds are 200,000,000 runs, more than the 1,000,000"),
+    ("compare-1e5-seeds", "compare",
+     lambda t, r: ["short.toml", "--controllers", "short.toml", SCENES / "pid_paper.toml", "--seeds", 100_000,
+                   "--out", "c"],
+     r"are 200,000 runs, more than the 20,000 without --force"),
+    ("fis-evaluate-1e9-points", "fis", lambda t, r: ["evaluate", TIPPER, "2", "1", "--points", 10**9],
+     r"--points 1000000000: more samples of the output range than the limit of 1,000,000"),
+    ("fis-surface-grid-1e5", "fis", lambda t, r: ["surface", TIPPER, "--out", "s.png", "--grid", 100_000],
+     r"--grid 100000: 1e\+10 points of the surface .* beyond the limit of 250,000 points"),
+    # 11. Replay input
+    ("replay-nan-row", "replay", lambda t, r: [damaged_run(t, r, 5, "slew_q_actual_rad", "nan"), "--export", "a.html"],
+     r"damaged/timeseries.csv: row 5, column 'slew_q_actual_rad': nan, not a finite number"),
+    ("replay-nan-row-in-the-ghost", "replay",
+     lambda t, r: [r, "--ghost", damaged_run(t, r, 3, "cp_actual_z_m", "inf"), "--export", "a.html"],
+     r"damaged/timeseries.csv: row 3, column 'cp_actual_z_m': inf, not a finite number"),
+    ("replay-renamed-column", "replay",
+     lambda t, r: [damaged_run(t, r, header=("luff_q_actual_rad", "luff_q_actual_deg")), "--export", "a.html"],
+     r"timeseries.csv: no column 'luff_q_actual_rad', which bwr_twin.run writes .*: renamed 'luff_q_actual_deg'\?"),
+    ("replay-truncated-csv", "replay", lambda t, r: [damaged_run(t, r, cut=50), "--export", "a.html"],
+     r"timeseries.csv: row 50 has \d+ values for the header's \d+ columns \(a truncated or damaged file\)"),
+    ("replay-text-in-a-row", "replay",
+     lambda t, r: [damaged_run(t, r, 7, "time_s", "abc"), "--export", "a.html"],
+     r"timeseries.csv: row 7, column 'time_s': 'abc' is not a number"),
+    ("replay-ghost-on-another-path", "replay",
+     lambda t, r: [r, "--ghost", damaged_run(t, r, scene=True), "--export", "a.html"],
+     r"damaged: --ghost follows another path than the replay: via point P2 \(t = 20 s\) at \(.*\) m against"),
+    # 12. Messages: argparse's errors, one line
+    ("argparse-run", "run", lambda t, r: ["short.toml"], r"python -m bwr_twin.run: the following arguments are "
+     r"required: --out \(see python -m bwr_twin.run --help\)"),
+    ("argparse-batch", "batch", lambda t, r: ["sweep.toml", "--out", "b", "--workers", "two"],
+     r"python -m bwr_twin.batch: argument --workers: invalid int value: 'two'"),
+    ("argparse-compare", "compare", lambda t, r: ["short.toml", "--controllers", "a", "b", "--out", "c", "--seeds", "0"],
+     r"python -m bwr_twin.compare: --seeds must be at least 1"),
+    ("argparse-replay", "replay", lambda t, r: ["short.toml", "--port", "70000"],
+     r"python -m bwr_twin.replay: argument --port: 70000 is not a TCP port"),
+    ("argparse-fis", "fis", lambda t, r: ["plot", TIPPER], r"python -m bwr_twin.fis: argument COMMAND: invalid choice"),
+    ("argparse-fis-evaluate", "fis", lambda t, r: ["evaluate", TIPPER, "1", "--points", "1e9"],
+     r"python -m bwr_twin.fis evaluate: argument --points: invalid int value: '1e9'"),
+    ("argparse-tune", "tune", lambda t, r: ["tune.toml"], r"python -m bwr_twin.tune: the following arguments are "
+     r"required: --out"),
+    ("argparse-passwd", "serve.passwd", lambda t, r: [], r"python -m bwr_twin.serve.passwd: the following arguments "
+     r"are required: name"),
+]
+
+
+@pytest.mark.parametrize("case", REFUSALS, ids=[case[0] for case in REFUSALS])
+def test_hostile_tool_input_is_refused_and_destroys_nothing(tmp_path, short_run, case):
+    _, command, arguments, pattern = case
+    write_short_scene(tmp_path)
+    args = arguments(tmp_path, short_run)
+    before, run_before = snapshot(tmp_path), snapshot(short_run)
+    proc = cli(command, *args, cwd=tmp_path)
+    assert_refused(proc, pattern)
+    assert snapshot(tmp_path) == before and snapshot(short_run) == run_before
+
+
+def test_one_parameter_is_tuned_by_a_bounded_scalar_search(tmp_path):
+    write_short_scene(tmp_path)
+    tuning(tmp_path, SECOND + "\n", "")
+    proc = cli("tune", "tune.toml", "--out", "out", "--workers", "1", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "tune.toml: 5 evaluations in 1 generations" in proc.stdout
+    header = (tmp_path / "out" / "best_scene.toml").read_text().splitlines()[1]
+    assert header == "# bounded scalar search over controller.output_gain.travel,"
+    again = cli("tune", "tune.toml", "--out", "out", "--workers", "1", cwd=tmp_path)  # resumes: done already
+    assert again.returncode == 0 and "5 evaluations in 1 generations" in again.stdout, again.stderr
+
+
+def test_a_file_the_twin_wrote_is_replaced_and_its_mark_is_its_first_line(tmp_path):
+    from matplotlib.figure import Figure
+
+    from bwr_twin.results.ownership import picture_metadata, written_by
+
+    for name in ("paper.fis", "paper.toml"):
+        proc = cli("fis", "convert", RULE_BASES / "paper_table2.toml", name, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        first = (tmp_path / name).read_text().splitlines()[0]
+        assert first == ("% " if name.endswith(".fis") else "# ") + "written by bwr_twin.fis"
+    again = cli("fis", "convert", RULE_BASES / "paper_table2.toml", "paper.fis", "--overwrite", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    for suffix in (".png", ".svg", ".pdf"):  # as fis surface saves them
+        figure = Figure()
+        figure.subplots().plot([0, 1])
+        figure.savefig(tmp_path / f"s{suffix}", metadata=picture_metadata("bwr_twin.fis", suffix))
+        assert written_by(tmp_path / f"s{suffix}", "bwr_twin.fis") and not written_by(tmp_path / f"s{suffix}", "other")
+        (tmp_path / f"n{suffix}").write_bytes(b"bwr_twin.fis " + (tmp_path / f"s{suffix}").read_bytes()[:200])
+        assert not written_by(tmp_path / f"n{suffix}", "bwr_twin.fis")
+
+
+@pytest.mark.parametrize("encode", [lambda t: BOM + t.encode(), lambda t: t.replace("\n", "\r\n").encode(),
+                                    lambda t: BOM + t.replace("\n", "\r\n").encode()], ids=["bom", "crlf", "both"])
+def test_a_byte_order_mark_and_crlf_line_ends_are_read_as_without(tmp_path, encode):
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.config.tuning import load_tuning
+    from bwr_twin.fis.convert import load_rule_base, load_system
+
+    scene = write_short_scene(tmp_path)
+    plain = load_scene(scene)
+    (tmp_path / "tune.toml").write_text(TUNING)
+    digest = load_tuning(tmp_path / "tune.toml").digest
+    for path in (scene, tmp_path / "tune.toml"):
+        path.write_bytes(encode(path.read_text()))
+    assert load_scene(scene).to_dict() == plain.to_dict()
+    assert load_tuning(tmp_path / "tune.toml").digest == digest  # the same tuning: its folder resumes
+    (tmp_path / "tipper.fis").write_bytes(encode(TIPPER.read_text()))
+    assert load_system(tmp_path / "tipper.fis") == load_system(TIPPER)
+    (tmp_path / "rules.toml").write_bytes(encode((RULE_BASES / "paper_table2.toml").read_text()))
+    assert load_rule_base(tmp_path / "rules.toml").digest() == load_rule_base(RULE_BASES / "paper_table2.toml").digest()
+
+
+def test_a_bom_and_crlf_scene_runs_and_a_bom_fis_evaluates_through_the_command_line(tmp_path):
+    scene = write_short_scene(tmp_path)
+    scene.write_bytes(BOM + scene.read_text().replace("\n", "\r\n").encode())
+    proc = cli("run", "short.toml", "--out", "o", "--no-plots", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    (tmp_path / "tipper.fis").write_bytes(BOM + TIPPER.read_bytes().replace(b"\n", b"\r\n"))
+    evaluated = cli("fis", "evaluate", "tipper.fis", "2", "1", cwd=tmp_path)
+    assert evaluated.returncode == 0 and evaluated.stdout.startswith("output = "), evaluated.stderr
+
+
+def test_the_controllers_page_example_loads_from_a_folder_outside_scenes(tmp_path):
+    from bwr_twin.config.scene import load_scene
+
+    page = (ROOT / "docs" / "controllers.md").read_text()
+    (python,) = re.findall(r"```python\n(.*?)```", page, flags=re.S)
+    (toml,) = re.findall(r"```toml\n(.*?)```", page, flags=re.S)
+    (tmp_path / "gravity_pd.py").write_text(python)
+    (tmp_path / "my_scene.toml").write_text(toml)
+    scene = load_scene(tmp_path / "my_scene.toml")  # extends the shipped paper_individual_gains.toml
+    assert scene.controller.type == f"{tmp_path / 'gravity_pd.py'}:GravityPD"
+    assert scene.trajectory.via_points[-1].t == 700.0 and scene.machine.mjcf.name == "bwr.xml"
+
