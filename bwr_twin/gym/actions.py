@@ -50,7 +50,8 @@ class ForceDrive:
             )
         self.low, self.high = -limits[:, 0], limits[:, 1]
 
-    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray | None:
+    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                  qdd_ref: np.ndarray) -> np.ndarray | None:
         """One slot's (1, 3) forces of its (3,) float action, clipped, as `forces` gives them;
         None if the action is not finite."""
         return None if clipped_force(action, self.low, self.high, self._force) >= 0 else self._force
@@ -71,7 +72,8 @@ class AccelerationDrive:
         self.belief = Belief(loop.belief_machine, slots, nthread=nthread)
         self._u = np.zeros((1, 3))
 
-    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray | None:
+    def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                  qdd_ref: np.ndarray) -> np.ndarray | None:
         """One slot's (1, 3) forces of its (3,) float action, clipped, at the (1, 3) measured
         state: the numbers `forces` gives (Belief.torque sums M u as it does); None if the action
         is not finite."""
@@ -107,7 +109,7 @@ def checked_actions(actions, shape: tuple[int, ...], where: str, rows: str | Non
     infinity. `rows` names what a row is, when there are rows (a vector environment's
     sub-environments)."""
     array = actions if isinstance(actions, np.ndarray) else _array(actions, shape, where)
-    expected = (f"{shape}: one row (travel, slew, luff) per {rows}" if rows else f"{shape}: travel, slew, luff")
+    expected = f"{shape}: one row (travel, slew, luff) per {rows}" if rows else f"{shape}: travel, slew, luff"
     if array.shape != shape:
         raise ValueError(f"{where}: an action of shape {array.shape}, expected {expected}")
     kind = array.dtype.kind
@@ -121,8 +123,8 @@ def checked_actions(actions, shape: tuple[int, ...], where: str, rows: str | Non
         index = np.unravel_index(bad, shape)
         row = f"{rows} {index[0]}, " if rows else ""
         name = f"action{'s' if rows else ''}[{', '.join(str(i) for i in index)}] ({row}{AXES[index[-1]]})"
-        raise ValueError(f"{where}: {name} is {array.flat[bad]}: actions must be finite (values beyond [-1, 1] are "
-                         "clipped)")
+        raise ValueError(f"{where}: {name} is {array.flat[bad]}: actions must be finite (values beyond "
+                         "[-1, 1] are clipped)")
     return array
 
 

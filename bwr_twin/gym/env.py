@@ -62,7 +62,8 @@ class ReclaimEnv(gymnasium.Env):
                  overrides: Mapping[str, Any] | None = None, duration: float | None = None):
         self.episodes = Episodes(scene, 1, action_mode=action_mode, force_scale=force_scale,
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
-                                 reward_weights=reward_weights, overrides=overrides, nthread=1, duration=duration)
+                                 reward_weights=reward_weights, overrides=overrides, nthread=1,
+                                 duration=duration)
         self.scales = self.episodes.scales
         self.drive = self.episodes.drive
         self.control_period = self.episodes.period
@@ -87,8 +88,8 @@ class ReclaimEnv(gymnasium.Env):
         return episodes.observation[0].copy(), reward, terminated, truncated, info
 
     def __reduce_ex__(self, protocol):
-        raise TypeError(f"{ENV_ID} cannot be pickled or copied: it holds compiled MuJoCo models and a run under "
-                        f"way; make another with gymnasium.make({ENV_ID!r}, ...) and the same arguments "
+        raise TypeError(f"{ENV_ID} cannot be pickled or copied: it holds compiled MuJoCo models and a run "
+                        f"under way; make another with gymnasium.make({ENV_ID!r}, ...) and the same arguments "
                         "(docs/gym.md)")
 
     def _info(self) -> dict[str, Any]:

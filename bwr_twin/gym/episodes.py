@@ -125,7 +125,7 @@ class Episodes:
         else:
             self.error = np.zeros((count, 3))
             self.elapsed = np.zeros(count)
-            self._q, self._qd, self._qdd_ref = np.zeros((count, 3)), np.zeros((count, 3)), np.zeros((count, 3))
+            self._q, self._qd, self._qdd_ref = (np.zeros((count, 3)) for _ in range(3))
         self.seed = np.zeros(count, dtype=np.int64)
         self._groups: list[Group] = []
         self._group_of: list[Group | None] = [None] * count
@@ -185,9 +185,9 @@ class Episodes:
         q_measured, qd_measured = loop.measure()
         q_desired, qd_desired, qdd_desired = loop.path
         failed = bool(loop.failures)
-        status = kernels.finish_one(loop.q_true, failed, q_desired, qd_desired, qdd_desired, min(k, loop.samples - 1),
-                                    q_measured, qd_measured, k * loop.period, self._constants, self._state,
-                                    self._outside, self.observation)
+        status = kernels.finish_one(loop.q_true, failed, q_desired, qd_desired, qdd_desired,
+                                    min(k, loop.samples - 1), q_measured, qd_measured, k * loop.period,
+                                    self._constants, self._state, self._outside, self.observation)
         reward = float(self._state[kernels.REWARD])
         if not (status or failed or loop.done or k == self.limit):
             return reward, False, False, None
@@ -247,8 +247,8 @@ class Episodes:
         self.elapsed[slots] = loop.k * loop.period
         observation = np.empty((len(runs), OBSERVATION_SIZE), dtype=np.float32)
         scales = self.scales
-        observe(q[runs], qd[runs], q_desired[k], qd_desired[k], qdd_desired[k], loop.k * loop.period, scales.offset,
-                scales.divisor, OBSERVATION_LIMIT, observation)
+        observe(q[runs], qd[runs], q_desired[k], qd_desired[k], qdd_desired[k], loop.k * loop.period,
+                scales.offset, scales.divisor, OBSERVATION_LIMIT, observation)
         self.observation[slots] = observation
 
     def _leave(self, slot: int) -> None:
@@ -280,9 +280,9 @@ def _limit(scene: Scene, duration: float | None) -> int | None:
             or not math.isfinite(duration) or duration <= 0:
         raise ValueError(f"duration must be a number of s > 0, got {duration!r}")
     if duration > path + period:  # the path's last period ends at path + period
-        raise ValueError(f"duration {duration:g} s: beyond the path of {scene.path.name} ({path:g} s), whose end "
-                         f"terminates an episode after {round(path / period) + 1} control periods; give at most "
-                         f"{path + period:g} s (or no duration: the whole path)")
+        raise ValueError(f"duration {duration:g} s: beyond the path of {scene.path.name} ({path:g} s), whose "
+                         f"end terminates an episode after {round(path / period) + 1} control periods; give at "
+                         f"most {path + period:g} s (or no duration: the whole path)")
     periods = round(duration / period)
     if periods < 1:
         raise ValueError(f"duration {duration:g} s: shorter than one control period ({period:g} s)")
@@ -296,7 +296,8 @@ def _check_budget(scene: Scene, count: int, limit: int | None) -> None:
     if limit is not None:  # a shorter episode: its share of the path's periods and steps
         via = scene.trajectory.via_points
         share = min(1.0, limit * scene.simulation.control_period / max(via[-1].t - via[0].t, 1e-300))
-        cost = dataclasses.replace(cost, physics_steps=cost.physics_steps * share, seconds=cost.seconds * share)
+        cost = dataclasses.replace(cost, physics_steps=cost.physics_steps * share,
+                                   seconds=cost.seconds * share)
     cost = dataclasses.replace(cost, disk_bytes=0.0)  # an environment writes nothing
     try:
         check_estimate(cost, where=scene.path, out_dir=Path.cwd(), force=False)

@@ -13,7 +13,8 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def observe(q, qd, q_ref, qd_ref, qdd_ref, elapsed, offset, divisor, limit, out):  # pragma: no cover - compiled
+def observe(q, qd, q_ref, qd_ref, qdd_ref, elapsed, offset, divisor, limit,
+            out):  # pragma: no cover - compiled
     """out[r] = clip((raw[r] - offset) / divisor, -limit, limit) as float32, raw[r] the layout of
     bwr_twin.gym.scales: q, qd, q_ref, qd_ref, qdd_ref, q_ref - q, elapsed; q, qd (runs, 3),
     the references (3,)."""
@@ -89,8 +90,8 @@ NOT_FINITE, OUTSIDE = 1, 2  # finish_one's status bits
 
 
 @numba.njit(cache=True)
-def finish_one(q, failed, q_desired, qd_desired, qdd_desired, row, q_measured, qd_measured, elapsed, constants,
-               state, outside, observation):  # pragma: no cover - compiled
+def finish_one(q, failed, q_desired, qd_desired, qdd_desired, row, q_measured, qd_measured, elapsed,
+               constants, state, outside, observation):  # pragma: no cover - compiled
     """One run at the end of a period, read at path row `row`: the error (reference - true q,
     kept from the last period if the run `failed` or q is not finite), `outside` the axes beyond
     the envelope, the reward of the error (`reward`), and unless it failed the measured state,

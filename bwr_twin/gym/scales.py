@@ -104,8 +104,7 @@ class Scales:
         """(runs, 19) float32 observations of (runs, 3) measured and (3,) reference states,
         `elapsed` s after the path's start: (entry - offset) / divisor, clipped (bwr_twin.gym.kernels)."""
         out = np.empty((len(q), OBSERVATION_SIZE), dtype=np.float32)
-        observe(np.asarray(q, dtype=float), np.asarray(qd, dtype=float), np.asarray(q_ref, dtype=float),
-                np.asarray(qd_ref, dtype=float), np.asarray(qdd_ref, dtype=float), float(elapsed), self._offset,
-                self._divisor, OBSERVATION_LIMIT, out)
+        q, qd, q_ref, qd_ref, qdd_ref = (np.asarray(a, dtype=float) for a in (q, qd, q_ref, qd_ref, qdd_ref))
+        observe(q, qd, q_ref, qd_ref, qdd_ref, float(elapsed), self._offset, self._divisor, OBSERVATION_LIMIT, out)
         return out
 

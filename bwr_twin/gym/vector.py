@@ -78,8 +78,8 @@ class ReclaimVectorEnv(VectorEnv):
 
     def step(self, actions):
         restart = np.flatnonzero(self._autoreset)
-        actions = checked_actions(actions, (self.num_envs, 3), f"{self.episodes.where}, a vector of {self.num_envs}",
-                                  rows="sub-environment")
+        where = f"{self.episodes.where}, a vector of {self.num_envs}"
+        actions = checked_actions(actions, (self.num_envs, 3), where, rows="sub-environment")
         outcome = self.episodes.step(actions)
         if len(restart):
             self.episodes.start(restart, [episode_seed(self._generators[i], None) for i in restart])
@@ -88,8 +88,8 @@ class ReclaimVectorEnv(VectorEnv):
                 self._infos(outcome.ended))
 
     def __reduce_ex__(self, protocol):
-        raise TypeError(f"a vector environment of {ENV_ID} cannot be pickled or copied: it holds compiled MuJoCo "
-                        f"models and runs under way; make another with gymnasium.make_vec({ENV_ID!r}, "
+        raise TypeError(f"a vector environment of {ENV_ID} cannot be pickled or copied: it holds compiled "
+                        f"MuJoCo models and runs under way; make another with gymnasium.make_vec({ENV_ID!r}, "
                         f"num_envs={self.num_envs}, ...) and the same arguments (docs/gym.md)")
 
     def _infos(self, ended: dict[int, str]) -> dict[str, Any]:

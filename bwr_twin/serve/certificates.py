@@ -26,8 +26,9 @@ def check_certificate(certificate: Path, private_key: Path, application_uri: str
     cert = _certificate(certificate)
     key = _private_key(private_key)
     if _public(key.public_key()) != _public(cert.public_key()):
-        raise CertificateError(f"--private-key {private_key} does not match --certificate {certificate}: the key's "
-                               "public key is not the certificate's (give the key the certificate was made with)")
+        raise CertificateError(f"--private-key {private_key} does not match --certificate {certificate}: the "
+                               "key's public key is not the certificate's (give the key the certificate was made "
+                               "with)")
     try:
         names = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
         uris = names.get_values_for_type(x509.UniformResourceIdentifier)
@@ -35,8 +36,9 @@ def check_certificate(certificate: Path, private_key: Path, application_uri: str
         uris = []
     if application_uri not in uris:
         found = f"it names {', '.join(uris)}" if uris else "it names no URI"
-        raise CertificateError(f"--certificate {certificate}: its subjectAltName must name the URI {application_uri}, "
-                               f"the server's application URI that clients check; {found} (docs/opcua.md)")
+        raise CertificateError(f"--certificate {certificate}: its subjectAltName must name the URI "
+                               f"{application_uri}, the server's application URI that clients check; {found} "
+                               "(docs/opcua.md)")
 
 
 def _certificate(path: Path) -> x509.Certificate:

@@ -66,14 +66,15 @@ def load_users(path: Path) -> dict[str, str]:
             continue
         name, _, stored = line.partition(":")
         fields = stored.split("$")
-        if not name or len(fields) != 4 or fields[0] != SCHEME or not _digits(fields[1]) or not _hex(fields[2:]):
+        if (not name or len(fields) != 4 or fields[0] != SCHEME or not _digits(fields[1])
+                or not _hex(fields[2:])):
             raise SecurityError(f"{path}:{number}: expected 'name:{SCHEME}$ITERATIONS$SALT$DIGEST' "
                                 "(python -m bwr_twin.serve.passwd NAME makes one)")
         count = fields[1].lstrip("0") or "0"
         if len(count) > len(str(MAX_ITERATIONS)) or not MIN_ITERATIONS <= int(count) <= MAX_ITERATIONS:
             shown = count if len(count) <= 15 else f"a {len(count)}-digit number of"
-            raise SecurityError(f"{path}:{number}: user {name!r}: {shown} PBKDF2 iterations; the server takes "
-                                f"{MIN_ITERATIONS:,} (OWASP's recommendation for PBKDF2-SHA256) to "
+            raise SecurityError(f"{path}:{number}: user {name!r}: {shown} PBKDF2 iterations; the server "
+                                f"takes {MIN_ITERATIONS:,} (OWASP's recommendation for PBKDF2-SHA256) to "
                                 f"{MAX_ITERATIONS:,} (a check under 1 s): make the line again with "
                                 "python -m bwr_twin.serve.passwd NAME")
         users[name] = stored
