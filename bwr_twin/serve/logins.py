@@ -22,11 +22,14 @@ class CheckingProcessor(UaProcessor):
 
     async def process_message(self, seqhdr, body):
         manager = self.iserver.user_manager
-        if hasattr(manager, "verify"):
-            login = self._login(body.copy())
-            if login is not None:
-                await manager.verify(*login)
-        return await super().process_message(seqhdr, body)
+        login = self._login(body.copy()) if hasattr(manager, "verify") else None
+        if login is None:
+            return await super().process_message(seqhdr, body)
+        await manager.verify(*login)
+        try:
+            return await super().process_message(seqhdr, body)
+        finally:
+            manager.forget(*login)  # a verdict asyncua did not ask for (it refused the request before) goes
 
     def _login(self, body) -> tuple[str, str] | None:
         """(user name, password) of an ActivateSession request with a user name token, else None

@@ -112,6 +112,10 @@ class PasswordUsers(UserManager):
         async with self._one_at_a_time:
             self._verdicts[username, password] = await asyncio.to_thread(self._matches, username, password)
 
+    def forget(self, username: str, password: str) -> None:
+        """Drop a verdict `get_user` did not take."""
+        self._verdicts.pop((username, password), None)
+
     def get_user(self, iserver, username=None, password=None, certificate=None) -> User | None:
         if username is None:  # an anonymous token (on a secure channel `certificate` is the client's own)
             return User(role=UserRole.Anonymous)
