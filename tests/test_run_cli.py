@@ -117,10 +117,13 @@ def test_a_bench_reclaim_prints_its_plan_line_and_writes_its_waypoints(tmp_path)
     names = run["waypoint_names"]
     assert len(run["waypoint_times"]) == len(run["waypoints"]) == len(names)
     assert names[0] == "bench 1" and names[-1] == "end" and {"pass 1", "pass 2", "pass 3"} <= set(names)
+    stages = run["waypoint_stages"]  # the same, typed: what the replay reads
+    assert stages[0] == {"kind": "bench", "number": 1} and stages[-1] == {"kind": "end", "number": None}
+    assert [s["kind"] for s in stages].count("bench") == 1 and {"pass", "move"} <= {s["kind"] for s in stages}
     assert (out / "reclaim.png").stat().st_size > 10_000
 
     recording = Recording.from_run_dir(out)
-    assert recording.plan.via_names == tuple(names)
+    assert recording.plan.names == names
     np.testing.assert_array_equal(recording.plan.via_times, run["waypoint_times"])
     assert [name for name, _ in recording.plan.landmarks] == ["bench 1"]
 

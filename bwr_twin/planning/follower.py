@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -96,7 +97,7 @@ class BenchReference:
         # each move's ends as Python floats, by segment index
         self._ends = {i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments) if isinstance(s, Move)}
         # (time, q, name) at each segment's start, and at the end
-        self._started = [[(0.0, plan.start.copy(), segment_name(plan, 0))] for _ in range(runs)]
+        self._started = [[(0.0, plan.start.copy(), segment_stage(plan, 0))] for _ in range(runs)]
         self._slew_acceleration = float(plan.acceleration[SLEW])
         self._top = float(plan.rated_speed[SLEW])
         self._trim = [1.0] * runs
@@ -165,7 +166,7 @@ class BenchReference:
             self.segment[run] = len(self.plan.segments)
         else:
             self.bench[run] = self.plan.segments[self.segment[run]].bench
-        self._started[run].append((self.k * self.period, at.copy(), segment_name(self.plan, self.segment[run])))
+        self._started[run].append((self.k * self.period, at.copy(), segment_stage(self.plan, self.segment[run])))
 
     def _plan_period(self, run: int) -> None:
         """The reference of the current period for run `run`, within its segment."""
@@ -201,36 +202,54 @@ class BenchReference:
         # Travel and luff rest through a pass: _next left their qdd at 0.
         self.qdd[run, SLEW] = change / dt
 
-    def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
+    def waypoints(self, run: int) -> tuple[Trajectory, list[Stage]]:
         """Where run `run` began each segment (and where it ended), its reclaim as via points,
-        and their names (`segment_name`)."""
+        and their stages (`segment_stage`)."""
         started = list(self._started[run])
         if not self.finished[run]:
-            started.append((self.k * self.period, self.q[run].copy(), "end"))
+            started.append((self.k * self.period, self.q[run].copy(), Stage("end")))
         times = np.array([t for t, _, _ in started])
         knots = np.array([q for _, q, _ in started])
-        # A zero-length segment adds no point; a named one wins over an unnamed at the same time.
+        # A zero-length segment adds no point; a named stage wins over a move at the same time.
         keep = np.append(np.diff(times) > 0, True)
-        names = [started[i][2] or (started[i - 1][2] if i and not keep[i - 1] else "") for i in range(len(started))]
+        stages = [started[i][2] if started[i][2].kind != "move" or not i or keep[i - 1] else started[i - 1][2]
+                  for i in range(len(started))]
         return (Trajectory(times=times[keep], knots=knots[keep], points=self._fk(knots[keep])),
-                [name for name, kept in zip(names, keep) if kept])
+                [stage for stage, kept in zip(stages, keep) if kept])
 
 
-def segment_name(plan: BenchPlan, index: int) -> str:
-    """What a replay calls the start of segment `index`: "bench 2" where a bench's moves begin,
-    "pass 7" where a pass does, "end" after the last; "" for a travel step or a step down."""
+@dataclass(frozen=True)
+class Stage:
+    """Where a segment of a bench plan starts, typed: "bench" where a bench's moves begin, "pass"
+    where a pass does (`number` is the bench, 1-based, or the pass's number), "move" for a travel
+    step or a step down, "end" after the last."""
+
+    kind: Literal["bench", "pass", "move", "end"]
+    number: int | None = None
+
+    @property
+    def name(self) -> str:
+        """What a replay labels it: "bench 2", "pass 7", "end"; "" for a move."""
+        return "" if self.kind == "move" else self.kind if self.number is None else f"{self.kind} {self.number}"
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "number": self.number}
+
+
+def segment_stage(plan: BenchPlan, index: int) -> Stage:
+    """The stage at the start of segment `index` of `plan`."""
     if index >= len(plan.segments):
-        return "end"
+        return Stage("end")
     segment = plan.segments[index]
     if isinstance(segment, Pass):
-        return f"pass {segment.number}"
-    return f"bench {segment.bench + 1}" if segment.kind in ("approach", "slew clear") else ""
+        return Stage("pass", segment.number)
+    return Stage("bench", segment.bench + 1) if segment.kind in ("approach", "slew clear") else Stage("move")
 
 
 def nominal(plan: BenchPlan, period: float, fk: Callable[[np.ndarray], np.ndarray], every: int = 1,
-            stop_time: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, Trajectory, list[str]]:
+            stop_time: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, Trajectory, list[Stage]]:
     """The plan followed open loop (no trim) by one run: times (n,), q and qd (n, 3) every `every`
-    control periods, its waypoints and their names; what a replay shows before the run is simulated."""
+    control periods, its waypoints and their stages; what a replay shows before the run is simulated."""
     reference = BenchReference(plan, 1, period, fk)
     stop = np.ones(1, dtype=bool)
     rows = []

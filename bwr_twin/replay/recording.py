@@ -23,6 +23,7 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES, Machine, paper_to_world
+from bwr_twin.planning.follower import Stage
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.surface import Surface, build_surface
@@ -49,7 +50,7 @@ class Plan:
     via_times: np.ndarray  # (k,) s
     via_points: np.ndarray  # (k, 3) m
     pile: Surface | None = None  # the stockpile at the start, if the scene has one
-    via_names: tuple[str, ...] = ()  # a bench plan's ("bench 1", "pass 3", "" unnamed); () for P1, P2, ...
+    via_stages: tuple[Stage, ...] = ()  # a bench plan's, typed (bwr_twin.planning.follower); () on a path
 
     @property
     def duration(self) -> float:
@@ -58,34 +59,33 @@ class Plan:
     @property
     def names(self) -> list[str]:
         """Each via point's name; "" for one the replay marks but does not name."""
-        return list(self.via_names) or [f"P{i + 1}" for i in range(len(self.via_times))]
+        return [s.name for s in self.via_stages] or [f"P{i + 1}" for i in range(len(self.via_times))]
 
     def stage(self, t: float) -> str | None:
-        """A bench plan's stage at time t, "bench 1, pass 3", from the named via points before it;
+        """A bench plan's stage at time t, "bench 1, pass 3", from the stages begun before it;
         None on a path."""
-        if not self.via_names:
+        if not self.via_stages:
             return None
         bench, step = "", ""
-        for name, start in zip(self.via_names, self.via_times):
+        for stage, start in zip(self.via_stages, self.via_times):
             if start > t:
                 break
-            if name.startswith("bench"):
-                bench, step = name, "moving onto it"
-            elif name.startswith("pass"):
-                step = name
-            elif name == "end":
+            if stage.kind == "bench":
+                bench, step = stage.name, "moving onto it"
+            elif stage.kind == "pass":
+                step = stage.name
+            elif stage.kind == "end":
                 step = "done"
-            elif name == "" and step.startswith("pass"):
+            elif step.startswith("pass"):  # a move after a pass
                 step = "travel step"
         return ", ".join(part for part in (bench, step) if part) or None
 
     @property
     def landmarks(self) -> list[tuple[str, float]]:
         """(name, time) of the via points to jump to: every one of a path, each bench of a plan."""
-        names = self.names
-        if not self.via_names:
-            return list(zip(names, self.via_times.tolist()))
-        return [(n, float(t)) for n, t in zip(names, self.via_times) if n.startswith("bench")]
+        if not self.via_stages:
+            return list(zip(self.names, self.via_times.tolist()))
+        return [(s.name, float(t)) for s, t in zip(self.via_stages, self.via_times) if s.kind == "bench"]
 
     @classmethod
     def from_scene(cls, scene: Scene) -> Plan:
@@ -100,11 +100,11 @@ class Plan:
             from bwr_twin.planning.follower import nominal
 
             control = scene.simulation.control_period
-            time, q_desired, qd_desired, trajectory, names = nominal(
+            time, q_desired, qd_desired, trajectory, stages = nominal(
                 plan_scene(scene), control, machine.fk, every=max(round(period / control), 1),
                 stop_time=scene.reclaim.stop.time)
         else:
-            names = []
+            stages = []
             try:
                 trajectory = Trajectory.plan(scene.trajectory, machine)
             except BwrError as exc:
@@ -122,7 +122,7 @@ class Plan:
             via_times=trajectory.times,
             via_points=trajectory.points,
             pile=pile,
-            via_names=tuple(names),
+            via_stages=tuple(stages),
         )
 
 
@@ -195,6 +195,8 @@ class Recording:
             raise BwrError(f"{run_dir}: not a run directory of bwr_twin.run (no {', '.join(missing)})")
         try:
             scene = json.loads((run_dir / SCENE_FILE).read_text())
+            if not isinstance(scene, dict):
+                raise TypeError(SCENE_FILE)  # said below, before the time series is read
             columns = read_recorded(run_dir / TIMESERIES_FILE)
             machine = Machine(scene["machine"]["mjcf"])
             pile_file = run_dir / PILE_FILE
@@ -244,11 +246,11 @@ class Recording:
             return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
 
         path = scene["trajectory"]
-        names: tuple[str, ...] = ()
-        if path is None:  # a bench reclaim: where the run began each segment of its plan
+        stages: tuple[Stage, ...] = ()
+        if path is None:  # a bench reclaim: where the run began each segment of its plan, and which
             via_times = np.array(run["waypoint_times"], dtype=float)
             via_points = np.array(run["waypoints"], dtype=float).reshape(-1, 3)
-            names = tuple(run["waypoint_names"])
+            stages = tuple(Stage(**stage) for stage in run["waypoint_stages"])
         else:
             via_times = np.array([v["t"] for v in path["via_points"]], dtype=float)
             via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
@@ -264,7 +266,7 @@ class Recording:
             via_times=via_times,
             via_points=via_points,
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
-            via_names=names,
+            via_stages=stages,
         )
         return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile)

@@ -21,7 +21,7 @@ from bwr_twin.control.rate import RateSignals, WheelCalibration
 from bwr_twin.errors import EnvelopeError, PluginError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_scene
-from bwr_twin.planning.follower import BenchReference, PathReference, Phase
+from bwr_twin.planning.follower import BenchReference, PathReference, Phase, Stage
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sim.outcome import PlanOutcome
 from bwr_twin.sim.plugins import call, checked, construct, describe
@@ -147,7 +147,8 @@ class BenchTracking:
         self.outcome.discharged(reclaim.conveyor.discharged)
 
     def run_metrics(self, run: int) -> dict:
-        """Where the run began each segment of its plan, for a replay."""
-        waypoints, names = self._reference.waypoints(run)
+        """Where the run began each segment of its plan, and which, for a replay."""
+        waypoints, stages = self._reference.waypoints(run)
         return {"waypoint_times": waypoints.times.tolist(), "waypoints": waypoints.points.tolist(),
-                "waypoint_names": names}
+                "waypoint_names": [stage.name for stage in stages],
+                "waypoint_stages": [stage.to_dict() for stage in stages]}
