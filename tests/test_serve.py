@@ -645,3 +645,29 @@ def test_password_checks_leave_the_server_responsive_and_sigterm_stops_it(short_
     assert answered < 0.3, f"a read took {answered:.2f} s during the password checks"
     assert status == 0 and stopped_in < 5.0, (status, stopped_in, server.stderr)
     assert "Traceback" not in server.stderr, server.stderr
+
+
+def test_a_secure_endpoint_with_a_matching_pair_serves_its_users(short_scene, credentials):
+    """The checks pass a good certificate and key; passwords then arrive encrypted, and are
+    checked off the event loop as on loopback without security."""
+    client_cert, client_key = certificate_pair(credentials["cert"].parent, "client", uri="urn:freeopcua:client")
+    server = Launched(short_scene, "--users", str(credentials["good users"]), "--certificate",
+                      str(credentials["cert"]), "--private-key", str(credentials["key"]))
+    url = server.ready()
+
+    async def session(password):
+        connection = client(url, password)
+        await connection.set_security_string(f"Basic256Sha256,SignAndEncrypt,{client_cert},{client_key}")
+        async with connection:
+            plc = await Plc.attach(connection)
+            return await plc.step(1)
+
+    try:
+        stepped_to = run(session(PASSWORD))
+        with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+            run(session("wrong"))
+    finally:
+        status = server.stop()
+    assert stepped_to == pytest.approx(0.01)
+    assert "security policies: Basic256Sha256 SignAndEncrypt" in server.lines
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
