@@ -67,7 +67,7 @@ class Disturbances:
     """The disturbance forces on the joints (N, N m) and the wind gusts (m/s) of every run."""
 
     def __init__(self, parameters: RunParameters, period: float):
-        streams = [np.random.SeedSequence(int(seed)).spawn(2) for seed in parameters.seed]
+        streams = [np.random.SeedSequence(seed).spawn(2) for seed in parameters.seed]
         self.forces = HeldNoise([np.random.default_rng(force) for force, _ in streams],
                                 parameters.disturbance_amplitude, parameters.disturbance_hold, period)
         self.gusts = HeldNoise([np.random.default_rng(gust) for _, gust in streams],

@@ -18,7 +18,7 @@ from bwr_twin.config.scene import Scene
 class RunParameters:
     """(runs,) or (runs, 3) arrays, in SI units; a row per run."""
 
-    seed: np.ndarray  # (runs,) the disturbance and gust streams' seeds
+    seed: tuple[int, ...]  # the disturbance and gust streams' seeds, any size SeedSequence takes
     encoder_resolution: np.ndarray  # (runs, 3) m, rad, rad
     velocity_estimated: np.ndarray  # (runs,) bool: the velocity comes from the encoder, not the plant
     velocity_filter: np.ndarray  # (runs,) s, the estimate's low-pass time constant
@@ -35,7 +35,7 @@ class RunParameters:
     def of(cls, scenes: Sequence[Scene]) -> RunParameters:
         plants = [s.plant for s in scenes]
         return cls(
-            seed=np.array([s.simulation.seed for s in scenes], dtype=np.int64),
+            seed=tuple(int(s.simulation.seed) for s in scenes),
             encoder_resolution=np.array([s.encoders.resolution for s in scenes], dtype=float),
             velocity_estimated=np.array([s.encoders.velocity_source == "encoder" for s in scenes]),
             velocity_filter=np.array([s.encoders.velocity_filter for s in scenes], dtype=float),
