@@ -193,6 +193,9 @@ class Lockstep:
             path=tracking.rows if tracking.shared else None, wind_mean=parameters.wind_speed,
             reclaim=self.reclaim is not None)
         observer.q[0], observer.qd[0] = plant.qpos, plant.qvel  # the first period's start
+        if not observe:  # one row, whose end state is the next period's start
+            row = observer.rows[0]
+            row.q_next, row.qd_next = row.q, row.qd
         self._controller: Controller | None = None  # whose declared signals are recorded
         self.command_source = "the drive forces given"  # who computes them, for messages
         self._stopped: set[int] = set()  # runs stopped for non-finite drive forces
@@ -284,8 +287,6 @@ class Lockstep:
             observer.end_at(end)
         if self._observe:
             observer.period_done()
-        else:  # only the next period's start is kept
-            row.q[...], row.qd[...] = row.q_next, row.qd_next
         if k % HEALTH_CHECK_EVERY == 0:
             plant.check_health()
         if k == self.samples:
