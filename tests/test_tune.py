@@ -138,7 +138,7 @@ def test_another_tuning_file_does_not_resume_a_directory(tmp_path):
         (("position_error_rms = 1.0", "position_eror_rms = 1.0"), r"'objective.position_eror_rms' is not known"),
         (("evaluations = 13", "evaluations = 0"), r"'budget.evaluations' must be an integer >= 1, got 0"),
         (('"controller.input_scale_e"', '"encoders.velocity_source"'),
-         r"'parameters.encoders.velocity_source' is not a number in the base scene \('true'\)"),
+         r"'parameters.encoders.velocity_source' is not a number \('true'\) in the base scene"),
         (("population = 4", "population = nan"), r"'optimizer.population' must be an integer >= 2, got nan"),
     ],
     ids=["start-outside-bounds", "unknown-scale", "held-out-seen", "unknown-metric", "no-budget", "not-a-number",
