@@ -671,3 +671,13 @@ def test_a_secure_endpoint_with_a_matching_pair_serves_its_users(short_scene, cr
     assert stepped_to == pytest.approx(0.01)
     assert "security policies: Basic256Sha256 SignAndEncrypt" in server.lines
     assert status == 0 and "Traceback" not in server.stderr, server.stderr
+
+
+def test_a_users_file_saved_with_a_byte_order_mark_and_crlf_reads_as_without(tmp_path):
+    """An editor on Windows may save the users file so: the first user's name is still the name."""
+    from bwr_twin.serve.security import load_users
+
+    line = f"{USER}:{hash_password(PASSWORD)}"
+    path = tmp_path / "users.txt"
+    path.write_bytes(b"\xef\xbb\xbf" + f"{line}\r\nsecond:{line.partition(':')[2]}\r\n".encode())
+    assert list(load_users(path)) == [USER, "second"]

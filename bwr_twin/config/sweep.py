@@ -41,6 +41,7 @@ import numpy as np
 from bwr_twin.config.scene import PATH_KEYS, Scene, load_scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
+from bwr_twin.textfile import read_text
 from bwr_twin.values import is_integer, is_number
 
 _TOP_LEVEL_KEYS = ("scene", "seeds", "vary")
@@ -144,7 +145,7 @@ def _read_toml(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise SceneError(f"{path}: sweep file not found")
     try:
-        return tomllib.loads(path.read_text())
+        return tomllib.loads(read_text(path))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None
     except UnicodeDecodeError:

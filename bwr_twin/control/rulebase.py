@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from bwr_twin.errors import SceneError
+from bwr_twin.textfile import read_text
 from bwr_twin.values import is_number
 
 if sys.version_info >= (3, 11):
@@ -75,13 +76,12 @@ class RuleBase:
         """Read and check a rule base file; every problem is a one-line SceneError."""
         path = Path(path)
         try:
-            with path.open("rb") as f:
-                data = tomllib.load(f)
+            data = tomllib.loads(read_text(path))  # a byte-order mark or CRLF ends read as without
         except FileNotFoundError:
             raise SceneError(f"{path}: rule base file not found") from None
         except OSError as exc:
             raise SceneError(f"{path}: cannot read the rule base: {exc.strerror}") from None
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise SceneError(f"{path}: not valid TOML: {exc}") from None
         return _parse(path, data)
 

@@ -15,10 +15,8 @@ above both, so that bwr_twin.control.rulebase knows nothing of .fis.
 
 from __future__ import annotations
 
-import codecs
 import json
 import re
-import sys
 from pathlib import Path
 
 from bwr_twin.control.rulebase import RuleBase
@@ -27,11 +25,6 @@ from bwr_twin.fis.reader import read_fis
 from bwr_twin.fis.system import AND, FuzzySystem, MembershipFunction, Rule, Variable, check
 from bwr_twin.fis.writer import fis_text, format_number
 from bwr_twin.textfile import read_text
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 SUFFIXES = (".fis", ".toml")
 INPUT_NAMES = ("e", "ec")
@@ -231,7 +224,7 @@ def load_rule_base(path: str | Path) -> RuleBase:
     express (two inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
     path = Path(path)
     if path.suffix.lower() != ".fis":
-        return _from_toml(path)
+        return RuleBase.from_toml(path)
     try:
         return fis_to_rulebase(read_fis(path))
     except SceneError as exc:
@@ -253,28 +246,9 @@ def load_system(path: str | Path) -> FuzzySystem:
 def _toml_rule_base(path: Path) -> RuleBase:
     """RuleBase.from_toml, with the line of the offending key added to its message where it can."""
     try:
-        return _from_toml(path)
+        return RuleBase.from_toml(path)
     except SceneError as exc:
         raise SceneError(_with_line(str(exc), path)) from None
-
-
-def _from_toml(path: Path) -> RuleBase:
-    """RuleBase.from_toml, also for a file saved with a UTF-8 byte-order mark, which tomllib
-    refuses as an invalid statement: such a file is read as text (bwr_twin.textfile)."""
-    from bwr_twin.control import rulebase
-
-    try:
-        with path.open("rb") as f:
-            marked = f.read(len(codecs.BOM_UTF8)) == codecs.BOM_UTF8
-    except OSError:
-        marked = False  # from_toml says what is wrong with the file
-    if not marked:
-        return RuleBase.from_toml(path)
-    try:
-        data = tomllib.loads(read_text(path))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from None
-    return rulebase._parse(path, data)
 
 
 def output_text(system: FuzzySystem, out: Path, source: str) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -10,6 +9,7 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.model.machine import AXES, UNITS, to_display
 
 Policy = Callable[[np.ndarray], np.ndarray]
@@ -61,7 +61,7 @@ def episode_command(description: str, make_policy: PolicyFactory, argv: list[str
     scene gets one line and exit status 2."""
     from bwr_twin.errors import BwrError, exit_status
 
-    parser = argparse.ArgumentParser(description=description)
+    parser = CommandParser(description=description)
     parser.add_argument("--scene", default="paper_individual_gains", help="scene file or shipped scene name")
     parser.add_argument("--seed", type=int, default=1, help="the episode's scene seed and the policy's (default 1)")
     parser.add_argument("--duration", type=float, help="stop after this many simulated seconds (default: the whole path)")

@@ -20,6 +20,7 @@ import socket
 import sys
 from pathlib import Path
 
+from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import exit_status
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME, ServeError
 
@@ -28,7 +29,7 @@ DEFAULT_PORT = 4840  # OPC UA's registered port, when the URL gives none
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m bwr_twin.serve", description=__doc__.split("\n\n")[0])
+    parser = CommandParser(prog="python -m bwr_twin.serve", description=__doc__.split("\n\n")[0])
     parser.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. paper_individual_gains")
     parser.add_argument("--endpoint", default=DEFAULT_ENDPOINT,
                         help=f"opc.tcp://HOST:PORT (default {DEFAULT_ENDPOINT}, this machine only)")

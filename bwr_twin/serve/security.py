@@ -21,6 +21,7 @@ from asyncua.crypto.permission_rules import USER_TYPES, PermissionRuleset, User,
 from asyncua.server.user_managers import UserManager
 
 from bwr_twin.errors import BwrError
+from bwr_twin.textfile import read_text
 from bwr_twin.serve.certificates import check_certificate
 from bwr_twin.serve.logins import install_login_checks
 
@@ -55,7 +56,7 @@ def check_password(password: str, stored: str) -> bool:
 def load_users(path: Path) -> dict[str, str]:
     """name -> hash from a users file. Raises SecurityError naming the file and line of a bad entry."""
     try:
-        lines = path.read_text().splitlines()
+        lines = read_text(path).splitlines()
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) else exc
         raise SecurityError(f"{path}: cannot read the users file ({reason})") from None

@@ -15,6 +15,7 @@ import numpy as np
 
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
+from bwr_twin.textfile import read_text
 
 YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
 MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
@@ -145,7 +146,7 @@ def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     try:
-        text = file.read_text()
+        text = read_text(file)
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{where}: cannot read it ({exc})") from None
     rows = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
