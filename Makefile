@@ -12,6 +12,8 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	@echo "computing the fuzzy control surface with scikit-fuzzy (once, then cached) ..."
 	$(PY) -c "from bwr_twin.control.fuzzy import FuzzySurface; from bwr_twin.control.rulebase import RuleBase; from bwr_twin.shipped import RULE_BASES; FuzzySurface.load(RuleBase.from_toml(RULE_BASES / 'paper_table2.toml'))"
+	@echo "compiling the control loop's kernels with numba (once, then cached) ..."
+	$(PY) -m bwr_twin.sim.warm
 	touch $@
 
 setup: $(VENV)/.installed
