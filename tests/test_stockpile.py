@@ -126,6 +126,18 @@ def test_an_oblique_travel_cut_removes_the_swept_envelope():
     assert dug == pytest.approx(section * length, rel=2e-3)  # 4.4e-4 measured
 
 
+def test_a_lockstep_draws_its_pile_as_the_scene_says():
+    """[stockpile] colour and base_depth reach the machine's world, where the pile is drawn."""
+    from bwr_twin.sim.lockstep import Lockstep
+
+    scene = load_scene(SCENES / "heavy_dig_pile.toml", {"stockpile.colour": [0.2, 0.2, 0.2, 1.0],
+                                                        "stockpile.base_depth": 2.5})
+    model = Lockstep([scene], observe=False).machine.model
+    geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, STOCKPILE)
+    np.testing.assert_allclose(model.geom_rgba[geom], [0.2, 0.2, 0.2, 1.0], rtol=1e-6)  # float32 in MuJoCo
+    assert model.hfield_size[model.geom_dataid[geom], 3] == 2.5
+
+
 def test_runs_dig_their_own_piles_in_one_lockstep():
     scenes = [load_scene(SCENES / "heavy_dig_pile.toml", {**SHORT_DIG, "simulation.seed": seed}) for seed in (1, 2)]
     together = simulate_lockstep(scenes)

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
-from bwr_twin.model.spec import Edits, Heights, Payload, compile_model
+from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
@@ -126,13 +126,15 @@ class Machine:
         rated_speed: (3,) the drives' rated speeds in m/s and rad/s (inf where the file gives none).
     """
 
-    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None):
+    def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
+                 stockpile_drawing: Drawing | None = None):
         """Compile `path`, adding each payload as a point mass on its body (what the plant
         carries and the file does not say, e.g. ore caked on the bucket wheel), and the
-        stockpile, if given, as a heightfield in the world."""
+        stockpile, if given, as a heightfield in the world, drawn as `stockpile_drawing` says."""
         self.path = Path(path)
         self.payloads = tuple(payloads)
-        self.model = compile_model(self.path, Edits(payloads=self.payloads, stockpile=stockpile))
+        self.model = compile_model(self.path, Edits(payloads=self.payloads, stockpile=stockpile,
+                                                    stockpile_drawing=stockpile_drawing))
         self.joint_ids = self._check_joints()
         self.actuator_ids = self._check_actuators()
         self.cp_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, CP_SITE)

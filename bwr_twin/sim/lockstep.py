@@ -170,7 +170,8 @@ class Lockstep:
         sim = scene.simulation
         parameters = RunParameters.of(scenes)
         surface = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
-        self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface)
+        self.machine = machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface,
+                                         stockpile_drawing=scene.stockpile)
         self.belief_machine = Machine(scene.controller_mjcf)  # its own compiled model, even from the same file
         self.runs = runs = len(scenes)
         self.nthread = min(nthread or os.cpu_count() or 1, runs)
