@@ -66,8 +66,9 @@ def compare(name: str, measured, bare, repeat: int) -> tuple[float, float]:
         pairs.append((measured(), floor_time))
     best, best_floor = min(m for m, _ in pairs), min(f for _, f in pairs)
     ratios = sorted(m / f for m, f in pairs)
-    print(f"{name} ratio: {best / best_floor:.2f}  (best {best:.3f} s against a floor of {best_floor:.3f} s; "
-          f"ratios of the {repeat} pairs {ratios[0]:.2f}-{ratios[-1]:.2f})", flush=True)
+    scale, unit = (1e6, "us") if best_floor < 0.01 else (1.0, "s")
+    print(f"{name} ratio: {best / best_floor:.2f}  (best {best * scale:.3f} {unit} against a floor of "
+          f"{best_floor * scale:.3f} {unit}; ratios of the {repeat} pairs {ratios[0]:.2f}-{ratios[-1]:.2f})", flush=True)
     return best, best_floor
 
 
