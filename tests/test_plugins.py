@@ -1,6 +1,6 @@
 """An engineer's controller or rate control that misbehaves: every failure is one line that names
 its file, class and call, what it raised or returned and when; a traceback never; in a
-lockstep only the runs it failed stop (docs/reliability.md, class 8)."""
+lockstep only the runs it failed stop (docs/reliability.md, "An engineer's controller or rate control")."""
 
 from __future__ import annotations
 
