@@ -23,10 +23,10 @@ import numpy as np
 
 from bwr_twin.control.belief import Belief
 from bwr_twin.errors import ModelError
-from bwr_twin.gym.kernels import clipped_acceleration, clipped_force, first_non_finite
+from bwr_twin.gym.kernels import clipped_acceleration, clipped_force
 from bwr_twin.gym.scales import at_cp
 from bwr_twin.model.machine import AXES
-from bwr_twin.sim.lockstep import Lockstep
+from bwr_twin.sim.lockstep import Lockstep, first_non_finite
 
 ACTION_MODES = ("acceleration", "force")
 DEFAULT_ACCELERATION_SCALE = 0.1  # m/s^2 at the CP: 13 x the paper path's peak reference (7.5e-3 m/s^2, travel)
@@ -118,7 +118,7 @@ def checked_actions(actions, shape: tuple[int, ...], where: str, rows: str | Non
         raise ValueError(f"{where}: an action of {what}, expected real numbers of shape {expected}")
     if array.dtype not in _COMPILED:
         array = array.astype(np.float64)
-    bad = first_non_finite(np.ascontiguousarray(array))
+    bad = first_non_finite(array)
     if bad >= 0:
         index = np.unravel_index(bad, shape)
         row = f"{rows} {index[0]}, " if rows else ""

@@ -48,16 +48,6 @@ def reward(error, scale, weights, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def first_non_finite(values):  # pragma: no cover - compiled
-    """The flat index of the first NaN or infinity in `values`, or -1."""
-    flat = values.ravel()
-    for i in range(flat.size):
-        if not np.isfinite(flat[i]):
-            return i
-    return -1
-
-
-@numba.njit(cache=True)
 def clipped_force(action, low, high, out):  # pragma: no cover - compiled
     """Force mode, one run: a = clip(action, -1, 1); out[0] = a * high where a >= 0, else a * low
     (np.where(a >= 0, a * high, a * low)). Returns the index of a non-finite action, writing

@@ -16,7 +16,6 @@ read-only views. Each period's raw signals go into the observer's rows
 
 from __future__ import annotations
 
-import math
 import os
 import types
 from collections.abc import Callable, Sequence
@@ -256,7 +255,7 @@ class Lockstep:
         k, observer, plant, tracking = self.k, self._observer, self._plant, self.tracking
         row = observer.rows[observer.row]
         row.command[...] = command
-        if not _all_finite(row.command):
+        if first_non_finite(row.command) >= 0:
             self._stop_non_finite(row.command)
         disturbance = row.disturbance
         disturbance[...] = self._disturbances.forces.sample(k)
@@ -348,11 +347,15 @@ class Lockstep:
 
 
 @numba.njit(cache=True)
-def _all_finite(array: np.ndarray) -> bool:  # pragma: no cover - compiled
-    for value in array.flat:
-        if not math.isfinite(value):
-            return False
-    return True
+def first_non_finite(values: np.ndarray) -> int:  # pragma: no cover - compiled
+    """The flat index of the first NaN or infinity in `values` (any layout), or -1: the check
+    every driver's drive forces, and an agent's actions, pass before they reach the plant."""
+    i = 0
+    for value in values.flat:
+        if not np.isfinite(value):
+            return i
+        i += 1
+    return -1
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from bwr_twin.model.machine import Machine
 from bwr_twin.sim.metrics import Metrics
 from bwr_twin.sim.record import Recorder
-from bwr_twin.signals import RECLAIM, Signal
+from bwr_twin.signals import LOOP, RECLAIM, Signal
 
 BLOCK = 500  # control periods a block: 5 s at 100 Hz, a few MB for 128 runs
 
@@ -103,12 +103,12 @@ class Observer:
         q_desired, qd_desired, qdd_desired = (np.broadcast_to(r[picked], (len(picked), self.runs, 3))
                                               for r in reference)
         qdd = (self.qd[picked + 1] - self.qd[picked]) / self.period
-        for name, values in (("q_desired", q_desired), ("q", self.q[picked]), ("q_measured", self.q_measured[picked]),
-                             ("qd_desired", qd_desired), ("qd", self.qd[picked]),
-                             ("qd_measured", self.qd_measured[picked]), ("qdd_desired", qdd_desired),
-                             ("qdd", qdd), ("drive_force_command", self.command[picked]),
-                             ("drive_force", self.drive_force[picked]), ("disturbance", self.disturbance[picked])):
-            signals[name][at] = values
+        values = {"q_desired": q_desired, "q": self.q[picked], "q_measured": self.q_measured[picked],
+                  "qd_desired": qd_desired, "qd": self.qd[picked], "qd_measured": self.qd_measured[picked],
+                  "qdd_desired": qdd_desired, "qdd": qdd, "drive_force_command": self.command[picked],
+                  "drive_force": self.drive_force[picked], "disturbance": self.disturbance[picked]}
+        for signal in LOOP:  # the schema's signals, each from its rows
+            signals[signal.name][at] = values[signal.name]
         for name, values in self.controller.items():
             signals[name][at] = values[picked]
         recorder.wind_speed[at] = self._wind_mean + self.gust[picked]
