@@ -377,6 +377,24 @@ def test_out_of_range_inputs_are_clipped_and_unfired_outputs_take_the_middle():
     assert result[1, 0] == pytest.approx(3.0)
 
 
+def test_many_rows_evaluate_in_blocks_exactly_as_one_at_a_time():
+    # 250 rows at 20,001 output samples go through evaluate() in three blocks of 99 rows; the
+    # reference evaluates each row alone. Out-of-range and NaN rows included.
+    methods = [("min", "max", "min", "max", "centroid"), ("prod", "probor", "prod", "sum", "bisector"),
+               ("min", "max", "prod", "probor", "mom")]
+    for seed, methods in enumerate(methods):
+        rng = np.random.default_rng(seed)
+        system = random_system(rng, methods)
+        rows = np.column_stack([rng.uniform(v.range[0] - 1, v.range[1] + 1, 250) for v in system.inputs])
+        rows[7, 0] = np.nan
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FisWarning)
+            together = evaluate(system, rows, points=20_001)
+            alone = np.vstack([evaluate(system, row, points=20_001) for row in rows])
+        np.testing.assert_array_equal(together, alone)
+        assert np.isnan(together[7]).all() and not np.isnan(np.delete(together, 7, axis=0)).any()
+
+
 # -- reading and writing ----------------------------------------------------------------------------
 
 QUIRKS = (
@@ -579,6 +597,47 @@ def test_cli_evaluate_prints_like_evalfis(tmp_path):
     done = run_cli("evaluate", TIPPER, 2, 1, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout == "output = 7.0169\n" and done.stderr == ""
+
+
+def test_cli_evaluates_every_row_of_a_csv_file_or_stdin(tmp_path):
+    # MATLAB's published rows (evalfis(fis, [2 1; 4 5; 7 8])), in a file saved by a Windows editor
+    # (byte-order mark, CRLF, a quoted header, a blank line) and piped without a header.
+    (tmp_path / "points.csv").write_bytes(b'\xef\xbb\xbf"service","food"\r\n2,1\r\n\r\n4, 5\r\n7,8\r\n')
+    done = run_cli("evaluate", TIPPER, "--input", "points.csv", cwd=tmp_path)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert done.stdout == "service,food,tip\n2,1,7.0169\n4,5,14.4585\n7,8,20.3414\n"
+    piped = subprocess.run([sys.executable, "-m", "bwr_twin.fis", "evaluate", str(TIPPER), "--input", "-",
+                            "--digits", "2"], input="2,1\n12,3\n", capture_output=True, text=True,
+                           cwd=tmp_path)
+    assert piped.returncode == 0, piped.stderr
+    clipped = evaluate(read_fis(TIPPER), [10, 3])[0, 0]
+    assert piped.stdout == f"service,food,tip\n2,1,7.02\n12,3,{clipped:.2f}\n"
+    assert piped.stderr.startswith("warning: input 1 'service': 1 of 2 values outside its range [0, 10]")
+    assert piped.stderr.count("\n") == 1
+    # The converted paper rule base: each row of a thousand as evaluate() gives it alone.
+    rng = np.random.default_rng(5)
+    rows = rng.uniform(-3, 3, (1000, 2)).tolist()
+    (tmp_path / "paper.csv").write_text("e,ec\n" + "".join(f"{e!r},{ec!r}\n" for e, ec in rows))
+    done = run_cli("evaluate", PAPER_TOML, "--input", "paper.csv", "--digits", "6", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == "e,ec,u" and len(lines) == 1001
+    system = rulebase_to_fis(RuleBase.from_toml(PAPER_TOML))
+    for line, row in zip(lines[1:], rows):
+        assert line == f"{row[0]!r},{row[1]!r},{evaluate(system, row)[0, 0]:.6f}"
+
+
+def test_cli_refuses_a_bad_row_naming_the_file_line_row_and_column(tmp_path):
+    (tmp_path / "points.csv").write_text("service,food\n2,1\n\n4,x\n7,8\n")
+    done = run_cli("evaluate", TIPPER, "--input", "points.csv", cwd=tmp_path)
+    assert done.returncode == 2 and done.stdout == "" and "Traceback" not in done.stderr
+    assert done.stderr == ("error: points.csv:4: row 2, column 2: 'x' is not a finite number "
+                           "(input 2 'food', range [0 10])\n")
+    piped = subprocess.run([sys.executable, "-m", "bwr_twin.fis", "evaluate", str(TIPPER), "--input", "-"],
+                           input="2,1\n4,5,6\n", capture_output=True, text=True, cwd=tmp_path)
+    assert piped.returncode == 2 and piped.stdout == ""
+    assert piped.stderr == ("error: <stdin>:2: row 2 has 3 values; the system has 2 inputs "
+                            "('service', 'food'), one value each, separated by commas\n")
 
 
 def test_cli_convert_round_trip(tmp_path):

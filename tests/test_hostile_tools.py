@@ -278,3 +278,50 @@ def test_the_controllers_page_example_loads_from_a_folder_outside_scenes(tmp_pat
     assert scene.controller.type == f"{tmp_path / 'gravity_pd.py'}:GravityPD"
     assert scene.trajectory.via_points[-1].t == 700.0 and scene.machine.mjcf.name == "bwr.xml"
 
+
+# fis evaluate --input (classes 10, 11 and 13): a file of inputs, or stdin, with a bad row, a wrong
+# header, bytes that are not UTF-8, or more rows (times output samples) than the limits.
+# (id, the file's bytes, given on stdin, more arguments, pattern of the one error line)
+FIS_INPUT_REFUSALS = [
+    ("text-in-a-row", b"service,food\n2,1\n4,x\n", False, [],
+     r"points.csv:3: row 2, column 2: 'x' is not a finite number \(input 2 'food', range \[0 10\]\)"),
+    ("nan-in-a-row", b"2,1\r\nnan,1\r\n", False, [],
+     r"points.csv:2: row 2, column 1: 'nan' is not a finite number"),
+    ("a-short-row", b"2,1\n\n4\n", False, [],
+     r"points.csv:3: row 2 has 1 value; the system has 2 inputs \('service', 'food'\), one value each"),
+    ("a-bad-row-on-stdin", b"2,1\n4,inf\n", True, [],
+     r"<stdin>:2: row 2, column 2: 'inf' is not a finite number"),
+    ("a-renamed-column", b"\xef\xbb\xbfservice,meal\n2,1\n", False, [],
+     r"points.csv:1: header column 2 'meal' is not input 2 'food' \(a header names the inputs in the .fis "
+     r"file's order: service,food\)"),
+    ("semicolons", b"2;1\n", False, [], r"points.csv:1: a first row without a number is a header, and this "
+     r"one has 1 column for the system's 2 inputs .*values are separated by commas"),
+    ("not-utf-8", b"2,1\n\xff\xfe,1\n", False, [], r"points.csv: not a UTF-8 text file \(byte 5\)"),
+    ("a-header-alone", b"service,food\n", False, [], r"points.csv: no rows of inputs"),
+    ("a-million-and-one-rows", b"1,1\n" * 1_000_001, False, [],
+     r"points.csv: 1,000,001 rows of inputs; --input takes at most 1,000,000: split the file"),
+    ("rows-times-points", b"1,1\n" * 100_000, False, ["--points", 1_000_000],
+     r"points.csv: 100,000 rows x 1,000,000 output samples x 3 rules x 1 output: about 25 min of inference, "
+     r"beyond the limit of 10 min; choose a smaller --points or split the rows"),
+    ("rows-and-x-values", b"2,1\n", False, ["2", "1"],
+     r"python -m bwr_twin.fis evaluate: give one value per input \(X ...\) or --input CSV, not both"),
+]
+
+
+@pytest.mark.parametrize("case", FIS_INPUT_REFUSALS, ids=[case[0] for case in FIS_INPUT_REFUSALS])
+def test_a_bad_file_of_fis_inputs_is_refused_and_nothing_is_printed(tmp_path, case):
+    _, data, stdin, extra, pattern = case
+    if not stdin:
+        (tmp_path / "points.csv").write_bytes(data)
+    before = snapshot(tmp_path)
+    proc = cli("fis", "evaluate", TIPPER, *extra, "--input", "-" if stdin else "points.csv", cwd=tmp_path,
+               input=data.decode("latin-1") if stdin else None)
+    assert_refused(proc, pattern)
+    assert proc.stdout == "" and snapshot(tmp_path) == before
+
+
+def test_a_bom_and_crlf_file_of_fis_inputs_evaluates_as_without(tmp_path):
+    (tmp_path / "points.csv").write_bytes(BOM + b"service,food\r\n2,1\r\n4,5\r\n7,8\r\n")
+    proc = cli("fis", "evaluate", TIPPER, "--input", "points.csv", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert proc.stdout == "service,food,tip\n2,1,7.0169\n4,5,14.4585\n7,8,20.3414\n"  # MATLAB's evalfis

@@ -48,19 +48,20 @@ def evaluate(
     if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 2:
         raise ValueError(f"points must be an integer >= 2 (samples of each output range), got {points!r}")
     x = _rows(system, inputs)
-    strengths = firing_strengths(system, x, warn=warn)
-    result = np.empty((x.shape[0], len(system.outputs)))
-    # Rows go through in blocks so that the sampled sets, (rows, points) each, stay a few MB.
-    block = max(1, _BLOCK_VALUES // points)
+    clipped = _clip(system, x, warn)  # once, so that each input warns once however many blocks
+    n_outputs = len(system.outputs)
+    result = np.empty((x.shape[0], n_outputs))
+    # Rows go through in blocks so that what each step holds, the memberships (rows, rules,
+    # inputs) and the sampled sets (rows, points), stays a few MB however many rows there are.
+    block = max(1, _BLOCK_VALUES // max(points, len(system.rules) * len(system.inputs)))
+    for start in range(0, x.shape[0], block):
+        strengths = firing_strengths(system, clipped[start : start + block], warn=False)
+        for o in range(n_outputs):
+            result[start : start + block, o] = defuzzify(
+                *aggregate(system, strengths, o, points), system.defuzz_method
+            )
     for o, variable in enumerate(system.outputs):
-        crisp = np.concatenate(
-            [
-                defuzzify(
-                    *aggregate(system, strengths[start : start + block], o, points), system.defuzz_method
-                )
-                for start in range(0, max(len(x), 1), block)
-            ]
-        )[: len(x)]
+        crisp = result[:, o]
         empty = np.isnan(crisp)
         middle = 0.5 * (variable.range[0] + variable.range[1])
         crisp[empty] = middle
@@ -71,7 +72,6 @@ def evaluate(
                 FisWarning,
                 stacklevel=2,
             )
-        result[:, o] = crisp
     result[np.isnan(x).any(axis=1)] = np.nan
     return result
 
@@ -159,16 +159,18 @@ def defuzzify(y: np.ndarray, aggregated: np.ndarray, method: str) -> np.ndarray:
     aggregated = np.atleast_2d(aggregated)
     total = aggregated.sum(axis=1)
     empty = ~(total > 0)
+    # Sums along each row (not a matrix product, whose BLAS kernel adds in an order that depends
+    # on the number of rows): a row's value is the same alone and among any others.
     if method == "centroid":
         with np.errstate(invalid="ignore", divide="ignore"):
-            crisp = (aggregated @ y) / total
+            crisp = (aggregated * y).sum(axis=1) / total
     elif method == "bisector":
         running = np.cumsum(aggregated, axis=1)
         crisp = y[np.argmax(running >= 0.5 * running[:, -1:], axis=1)]
     elif method in ("mom", "som", "lom"):
         at_max = aggregated == aggregated.max(axis=1, keepdims=True)
         if method == "mom":
-            crisp = (at_max @ y) / at_max.sum(axis=1)
+            crisp = np.where(at_max, y, 0.0).sum(axis=1) / at_max.sum(axis=1)
         elif method == "som":
             crisp = y[np.argmin(np.where(at_max, np.abs(y), np.inf), axis=1)]
         else:
@@ -206,7 +208,7 @@ def _clip(system: FuzzySystem, x: np.ndarray, warn: bool) -> np.ndarray:
                 f"[{low:g}, {high:g}] (from {values.min():g} to {values.max():g}) were clipped to it "
                 "(MATLAB's evalfis warns too)",
                 FisWarning,
-                stacklevel=3,
+                stacklevel=3,  # the caller of evaluate() or firing_strengths()
             )
         clipped[:, j] = np.where(np.isnan(column), 0.5 * (low + high), np.clip(column, low, high))
     return clipped
