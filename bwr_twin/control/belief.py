@@ -1,19 +1,19 @@
 """The controller's belief of the machine: its mass matrix and bias forces at the measured state.
 
-The belief is its own compiled model (the scene's `controller_mjcf`, or the plant's file
-compiled apart), stepped never: for every run of a lockstep, one `Batch.forward` to the velocity
-stage at the *measured* joint state gives M(q̂) and bias(q̂, q̂̇) = Coriolis, centrifugal and
-gravity forces. `qfrc_bias` holds no friction: joint damping and friction loss in the belief's
-file never enter the control law, by design.
+The belief is the closed form of the believed machine's M(q) and bias(q, qd) (the scene's
+`controller_mjcf`, or the plant's file compiled apart; `bwr_twin.model.dynamics`), identified
+from its compiled model and checked against MuJoCo's: for every run of a lockstep, one compiled
+pass at the *measured* joint state gives M(q̂) and bias(q̂, q̂̇) = Coriolis, centrifugal and
+gravity forces. The bias holds no friction: joint damping and friction loss in the belief's file
+never enter the control law, by design.
 """
 
 from __future__ import annotations
 
-import mujoco
 import numba
 import numpy as np
-from mujoco.batch import Batch
 
+from bwr_twin.model.dynamics import evaluate
 from bwr_twin.model.machine import Machine
 
 
@@ -22,60 +22,52 @@ class Belief:
 
     Attributes:
         machine: the believed machine (kinematics, drive limits).
-        bias: (runs, 3) Coriolis, centrifugal and gravity forces at the state of the last
-            `update`, in N and N m; `mass_matrix` M there.
+        mass_matrix: (runs, 3, 3) M at the state of the last `update`, in kg, kg m and kg m^2;
+            `bias` (runs, 3) the Coriolis, centrifugal and gravity forces there, in N and N m.
     """
 
-    def __init__(self, machine: Machine, runs: int, *, nthread: int = 0):
+    def __init__(self, machine: Machine, runs: int):
         self.machine = machine
-        model = machine.physics_model(rigid_body_only=True)
-        self._batch = batch = Batch(model, runs, nthread=nthread)
-        self._qpos = batch.bind("qpos")
-        self._qvel = batch.bind("qvel")
-        self._sparse_mass = batch.bind("M")  # MuJoCo's CSR lower triangle, bound before any call
-        self.bias = batch.bind("qfrc_bias")
-        # Where each entry of the dense, symmetric M sits in the sparse lower triangle.
-        nv = model.nv
-        self._dense_index = np.zeros((nv, nv), dtype=np.int64)
-        for i in range(nv):
-            for a in range(model.M_rowadr[i], model.M_rowadr[i] + model.M_rownnz[i]):
-                j = model.M_colind[a]
-                self._dense_index[i, j] = self._dense_index[j, i] = a
-        self._dense_index = self._dense_index.ravel()
-        self._mass_matrix = np.zeros((runs, nv, nv))
-        self._dense_current = False
+        self._dynamics = machine.dynamics
+        self.mass_matrix = np.zeros((runs, 3, 3))
+        self.bias = np.zeros((runs, 3))
+        self._every_run = np.arange(runs, dtype=np.int64)
 
     def update(self, q: np.ndarray, qd: np.ndarray, ids: np.ndarray | None = None) -> None:
         """Compute M and bias at the (runs, 3) measured state, for the runs `ids` (None: all)."""
-        self._qpos[...] = q
-        self._qvel[...] = qd
-        # Positions give M (composite rigid bodies), velocities the bias (Newton-Euler, no qacc).
-        self._batch.forward(ids, stage=mujoco.mjtStage.mjSTAGE_VEL)
-        self._dense_current = False
+        ids = self._every_run if ids is None else np.asarray(ids, dtype=np.int64)
+        dynamics = self._dynamics
+        evaluate(dynamics.mass, dynamics.gravity, q, qd, ids, self.mass_matrix, self.bias)
 
-    @property
-    def mass_matrix(self) -> np.ndarray:
-        """(runs, 3, 3) M at the state of the last `update`, in kg and kg m^2 (dense, made on demand)."""
-        if not self._dense_current:
-            np.take(self._sparse_mass, self._dense_index, axis=1, out=self._mass_matrix.reshape(len(self._mass_matrix), -1))
-            self._dense_current = True
-        return self._mass_matrix
+    def torque_at(self, q: np.ndarray, qd: np.ndarray, u: np.ndarray, ids: np.ndarray | None = None) -> np.ndarray:
+        """`update(q, qd, ids)`, then `torque(u)`, in one compiled call."""
+        ids = self._every_run if ids is None else np.asarray(ids, dtype=np.int64)
+        out = np.empty(u.shape)
+        dynamics = self._dynamics
+        _torque_at(dynamics.mass, dynamics.gravity, q, qd, ids, self.mass_matrix, self.bias, u, out)
+        return out
 
     def torque(self, u: np.ndarray) -> np.ndarray:
         """tau = M u + bias (runs, 3) at the state of the last `update`, for the accelerations u
         (runs, 3). M u is summed row by row in a fixed order: a run's force does not depend on its
         neighbours."""
         out = np.empty(u.shape)
-        _torque(self._sparse_mass, self._dense_index, u, self.bias, out)
+        _torque(self.mass_matrix, u, self.bias, out)
         return out
 
 
 @numba.njit(cache=True)
-def _torque(sparse_mass, dense_index, u, bias, out):  # pragma: no cover - compiled
+def _torque_at(mass_coefficients, gravity_coefficients, q, qd, ids, mass, bias, u, out):  # pragma: no cover
+    evaluate(mass_coefficients, gravity_coefficients, q, qd, ids, mass, bias)
+    _torque(mass, u, bias, out)
+
+
+@numba.njit(cache=True)
+def _torque(mass, u, bias, out):  # pragma: no cover - compiled
     runs, nv = u.shape
     for r in range(runs):
         for i in range(nv):
             inertial = 0.0
             for j in range(nv):
-                inertial += sparse_mass[r, dense_index[i * nv + j]] * u[r, j]
+                inertial += mass[r, i, j] * u[r, j]
             out[r, i] = inertial + bias[r, i]

@@ -47,5 +47,4 @@ class ComputedTorqueController(Controller):
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref, ids):
         u = self.acceleration_command
         np.add(qdd_ref, self._kp * (q_ref - q) + self._kd * (qd_ref - qd), out=u)
-        self.belief.update(q, qd, ids)
-        return self.belief.torque(u)
+        return self.belief.torque_at(q, qd, u, ids)

@@ -83,8 +83,7 @@ class FuzzyModelController(Controller):
         _acceleration_command(q_measured, qd_measured, q_desired.reshape(-1, 3), qd_desired.reshape(-1, 3),
                               qdd_desired.reshape(-1, 3), self._scale_e, self._scale_ec, self._output_gain,
                               self._feedforward, self._surface.kernel, self.fuzzy_output, self.acceleration_command)
-        self.belief.update(q_measured, qd_measured, ids)
-        return self.belief.torque(self.acceleration_command)
+        return self.belief.torque_at(q_measured, qd_measured, self.acceleration_command, ids)
 
 
 @numba.njit(cache=True)

@@ -43,7 +43,8 @@ class ControllerContext:
         control_period: s, the time between two calls of `compute`.
         machine: the believed machine (the scene's controller_mjcf): kinematics (`fk`, `ik`),
             `envelope`, `joint_range` and `drive_limits` (3, 2) in N and N m (inf if none).
-        nthread: threads the belief's MuJoCo batch may use.
+        nthread: threads the lockstep's MuJoCo batch steps on (a controller that runs a batch
+            of its own may use as many).
     """
 
     runs: int
@@ -55,10 +56,10 @@ class ControllerContext:
     def belief(self):  # -> bwr_twin.control.belief.Belief, built on first use: PID never needs it
         """M(q) and bias(q, qd) of every run's believed machine, at a state the controller
         chooses: `belief.update(q, qd, ids)`, then `belief.mass_matrix` (runs, 3, 3) and
-        `belief.bias` (runs, 3)."""
+        `belief.bias` (runs, 3), or `belief.torque(u)`; `belief.torque_at(q, qd, u, ids)` in one."""
         from bwr_twin.control.belief import Belief
 
-        return Belief(self.machine, self.runs, nthread=self.nthread)
+        return Belief(self.machine, self.runs)
 
 
 class Controller(ABC):

@@ -65,11 +65,11 @@ class ForceDrive:
 class AccelerationDrive:
     """tau = M(q_hat) (qdd_ref + a * scale) + bias(q_hat, qd_hat), from the controller's belief."""
 
-    def __init__(self, loop: Lockstep, slots: int, acceleration_scale: float, nthread: int):
+    def __init__(self, loop: Lockstep, slots: int, acceleration_scale: float):
         (scale,) = _positive("acceleration_scale", [acceleration_scale], 1)
         self.scale = at_cp(scale, loop.machine)
         # One belief for every environment slot, reused across episodes: it holds no state.
-        self.belief = Belief(loop.belief_machine, slots, nthread=nthread)
+        self.belief = Belief(loop.belief_machine, slots)
         self._u = np.zeros((1, 3))
 
     def force_one(self, action: np.ndarray, q: np.ndarray, qd: np.ndarray,
@@ -79,8 +79,7 @@ class AccelerationDrive:
         is not finite."""
         if clipped_acceleration(action, qdd_ref, self.scale, self._u) >= 0:
             return None
-        self.belief.update(q, qd)
-        return self.belief.torque(self._u)
+        return self.belief.torque_at(q, qd, self._u)
 
     def forces(self, action: np.ndarray, slots: np.ndarray, q: np.ndarray, qd: np.ndarray,
                qdd_ref: np.ndarray) -> np.ndarray:
@@ -94,12 +93,12 @@ class AccelerationDrive:
 
 
 def make_drive(mode: str, loop: Lockstep, slots: int, *, force_scale: Sequence[float] | None,
-               acceleration_scale: float, nthread: int) -> ForceDrive | AccelerationDrive:
+               acceleration_scale: float) -> ForceDrive | AccelerationDrive:
     """The drive of `mode` for `slots` environment slots of the lockstep's scene."""
     if mode == "force":
         return ForceDrive(loop, force_scale)
     if mode == "acceleration":
-        return AccelerationDrive(loop, slots, acceleration_scale, nthread)
+        return AccelerationDrive(loop, slots, acceleration_scale)
     raise ValueError(f"action_mode must be one of {', '.join(ACTION_MODES)}, got {mode!r}")
 
 

@@ -110,7 +110,7 @@ class Episodes:
         self.period = first.period
         self.envelope = first.machine.envelope
         self.drive = make_drive(action_mode, first, count, force_scale=force_scale,
-                                acceleration_scale=acceleration_scale, nthread=nthread)
+                                acceleration_scale=acceleration_scale)
         self.count = count
         self.observation = np.zeros((count, OBSERVATION_SIZE), dtype=np.float32)
         if count == 1:  # step_one's kernel writes them: views of one state array

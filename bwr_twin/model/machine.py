@@ -11,8 +11,8 @@ that geometry: a slew axis at (sx, sy), a luff pivot `pivot_reach` out from it a
 
 from __future__ import annotations
 
+import functools
 import math
-
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
+from bwr_twin.model.dynamics import ChainDynamics
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
 
 AXES = ("travel", "slew", "luff")
@@ -170,6 +171,16 @@ class Machine:
                     "and the visual geoms no mass (model contract)"
                 )
         return model
+
+    @functools.cached_property
+    def dynamics(self) -> ChainDynamics:
+        """M(q) and bias(q, qd) of the machine's rigid bodies in closed form (payloads included),
+        identified from MuJoCo and checked against it (bwr_twin.model.dynamics)."""
+        dynamics = ChainDynamics.identify(self.physics_model(rigid_body_only=True))
+        if dynamics is None:  # the contract's joint checks leave no such chain: a defect, said plainly
+            raise ModelError(f"{self.path}: its mass matrix and bias forces do not have the closed form of a "
+                             "travel-slew-luff chain (bwr_twin/model/dynamics.py)")
+        return dynamics
 
     # -- contract ---------------------------------------------------------------------------
 

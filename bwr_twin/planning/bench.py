@@ -24,7 +24,6 @@ import functools
 from dataclasses import replace
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
 from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
@@ -120,16 +119,11 @@ class _Planner:
     def _check_drives(self) -> None:
         """The references' accelerations, held against gravity at the start, within each drive's rating."""
         machine, where = self.machine, self.where
-        model = machine.physics_model(rigid_body_only=True)
-        data = mujoco.MjData(model)
-        data.qpos[:] = self.start
-        mujoco.mj_forward(model, data)
-        mass = np.zeros((model.nv, model.nv))
-        mujoco.mj_fullM(model, data, mass)
+        mass, biases = machine.dynamics.at(self.start, np.zeros(3))
         for j, axis in enumerate(AXES):
             need = mass[j, j] * self.acceleration[j]
             low, high = machine.drive_limits[j]
-            bias = data.qfrc_bias[j]
+            bias = biases[j]
             if bias + need > high or bias - need < low:
                 unit, force = ("m/s2", "N") if j == 0 else ("deg/s2", "N m")
                 shown = self.acceleration[j] if j == 0 else np.degrees(self.acceleration[j])

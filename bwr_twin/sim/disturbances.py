@@ -41,6 +41,7 @@ class HeldNoise:
         self._last = np.zeros(self._amplitude.shape)  # each run's latest draw
         self._block = np.zeros((0,) + self._amplitude.shape)
         self._start = 0
+        self.active = bool(self._amplitude.any())  # False: every sample is zero, and need not be drawn
 
     def sample(self, k: int) -> np.ndarray:
         if not self._start <= k < self._start + len(self._block):

@@ -20,9 +20,8 @@ class Encoders:
         """`period` the control period in s, `q0` the (3,) or (runs, 3) joint values the runs
         start at (m, rad, rad)."""
         self._resolution = parameters.encoder_resolution
-        self._estimate = parameters.velocity_estimated[:, None]
-        self._any_estimate = bool(self._estimate.any())
-        self._filter_gain = (period / (parameters.velocity_filter + period))[:, None]
+        self._estimate = parameters.velocity_estimated.copy()
+        self._filter_gain = period / (parameters.velocity_filter + period)
         self._period = period
         self._q_previous = self.quantise(np.broadcast_to(q0, (parameters.runs, 3)))
         self._qd_estimate = np.zeros((parameters.runs, 3))
@@ -36,14 +35,8 @@ class Encoders:
     def measure(self, q: np.ndarray, qd: np.ndarray, q_measured: np.ndarray, qd_measured: np.ndarray) -> None:
         """Write the measured positions and velocities of the true (runs, 3) joint state into
         `q_measured` and `qd_measured`; call once a period."""
-        self.quantise(q, out=q_measured)
-        if not self._any_estimate:
-            qd_measured[...] = qd
-            return
-        difference = (q_measured - self._q_previous) / self._period
-        self._qd_estimate += (difference - self._qd_estimate) * self._filter_gain
-        np.copyto(self._q_previous, q_measured)
-        np.copyto(qd_measured, np.where(self._estimate, self._qd_estimate, qd))
+        _measure(q, qd, self._resolution, self._estimate, self._filter_gain, self._period, self._q_previous,
+                 self._qd_estimate, q_measured, qd_measured)
 
 
 @numba.njit(cache=True)
@@ -52,3 +45,20 @@ def _quantise(q, resolution, out):  # pragma: no cover - compiled
     for r in range(q.shape[0]):
         for j in range(q.shape[1]):
             out[r, j] = np.rint(q[r, j] / resolution[r, j]) * resolution[r, j]
+
+
+@numba.njit(cache=True)
+def _measure(q, qd, resolution, estimate, filter_gain, period, q_previous, qd_estimate, q_measured,
+             qd_measured):  # pragma: no cover - compiled
+    """Quantised positions; the true velocity, or, for the runs that estimate it, the backward
+    difference of the quantised positions through the low-pass."""
+    _quantise(q, resolution, q_measured)
+    for r in range(q.shape[0]):
+        for j in range(3):
+            if estimate[r]:
+                difference = (q_measured[r, j] - q_previous[r, j]) / period
+                qd_estimate[r, j] += (difference - qd_estimate[r, j]) * filter_gain[r]
+                q_previous[r, j] = q_measured[r, j]
+                qd_measured[r, j] = qd_estimate[r, j]
+            else:
+                qd_measured[r, j] = qd[r, j]

@@ -267,12 +267,11 @@ class Lockstep:
                 disturbance += load
             for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
                 rows[...] = value
-        gust = self._disturbances.gusts.sample(k)
-        row.gust[...] = gust
-        plant.step(row.command, disturbance, gust)
-        row.drive_force[...] = plant.drive_force
-        row.q_next[...] = plant.qpos
-        row.qd_next[...] = plant.qvel
+        gusts = self._disturbances.gusts
+        if gusts.active:  # still air leaves the row's zeros
+            row.gust[...] = gusts.sample(k)
+        plant.step(row.command, disturbance, row.gust)
+        plant.read(row.q_next, row.qd_next, row.drive_force)
         if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's
             for rows, value in zip(row.reference, tracking.now()):
                 rows[...] = value

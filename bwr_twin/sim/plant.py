@@ -14,6 +14,7 @@ import contextlib
 from collections.abc import Iterator
 
 import mujoco
+import numba
 import numpy as np
 from mujoco.batch import Batch
 from mujoco.batch import SimulationError as BatchError
@@ -55,9 +56,7 @@ class Plant:
         self._applied = batch.bind("qfrc_applied")
         self.drive_force = batch.bind("qfrc_actuator")
         ids = list(machine.actuator_ids)
-        # The drives' columns of ctrl: a slice (a view, cheap to write) when they are in joint order.
-        self._actuators = slice(ids[0], ids[0] + 3) if ids == list(range(ids[0], ids[0] + 3)) else np.array(ids)
-        self._drive_ctrl = self._ctrl[:, self._actuators] if isinstance(self._actuators, slice) else None
+        self._actuators = np.array(ids, dtype=np.int64)  # the drives' columns of ctrl, in joint order
         self._gear = machine.model.actuator_gear[ids, 0].copy()
         substeps = round(control_period / timestep)
         # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
@@ -85,11 +84,7 @@ class Plant:
     def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
         """Hold the (runs, 3) drive forces and disturbances, and each run's (runs,) gust on its
         mean wind, for one control period."""
-        if self._drive_ctrl is not None:
-            np.divide(drive_force, self._gear, out=self._drive_ctrl)
-        else:
-            self._ctrl[:, self._actuators] = drive_force / self._gear
-        self._applied[...] = disturbance
+        _hold(drive_force, self._gear, self._actuators, disturbance, self._ctrl, self._applied)
         if self._wind is not None:
             self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
         for steps in self._calls:
@@ -98,8 +93,12 @@ class Plant:
             except BatchError as exc:
                 for run in exc.ids:
                     self.fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
-        if np.count_nonzero(self._warning_counts):  # cheap each period, so a failure's time is exact
+        if _any(self._warning_counts):  # cheap each period, so a failure's time is exact
             self.check_health()
+
+    def read(self, q: np.ndarray, qd: np.ndarray, drive_force: np.ndarray) -> None:
+        """Copy the (runs, 3) joint state and the drive forces of the last period into the arrays given."""
+        _read(self.qpos, self.qvel, self.drive_force, q, qd, drive_force)
 
     def check_health(self) -> None:
         """Fail the runs that MuJoCo warned about (it resets a diverged state) or whose state is
@@ -116,6 +115,30 @@ class Plant:
         """Stop stepping `run`, for `reason` (the time is added); the others go on."""
         self.failures[run] = f"{reason}, near t = {self.batch.time[run]:.2f} s"
         self.alive = np.array([r for r in range(self.batch.nsim) if r not in self.failures], dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def _hold(drive_force, gear, actuators, disturbance, ctrl, applied):  # pragma: no cover - compiled
+    """The drives' controls (force over gear) and the disturbances, for every run."""
+    for r in range(drive_force.shape[0]):
+        for j in range(3):
+            ctrl[r, actuators[j]] = drive_force[r, j] / gear[j]
+            applied[r, j] = disturbance[r, j]
+
+
+@numba.njit(cache=True)
+def _read(qpos, qvel, actuator_force, q, qd, drive_force):  # pragma: no cover - compiled
+    for r in range(qpos.shape[0]):
+        for j in range(3):
+            q[r, j], qd[r, j], drive_force[r, j] = qpos[r, j], qvel[r, j], actuator_force[r, j]
+
+
+@numba.njit(cache=True)
+def _any(counts):  # pragma: no cover - compiled
+    for value in counts.flat:
+        if value:
+            return True
+    return False
 
 
 @contextlib.contextmanager
