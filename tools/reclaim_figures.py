@@ -59,7 +59,8 @@ def main() -> None:
         futures = {label: pool.submit(run, *job) for label, job in jobs.items()}
         runs = {label: future.result() for label, future in futures.items()}
 
-    print("| heavy_bench_reclaim | steady rate (target 8,000 t/h) | CV | within ±10 % | steady time | landing error "
+    print("| heavy_bench_reclaim | steady rate (target 8,000 t/h) | steady reclaim rate CV (std/mean) "
+          "| steady cutting time within ±10 % of the target | steady time | landing error "
           "| over-cut max | reclaimed (planned) | mean rate while carrying | took | simulated in |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for label in RATE_CONTROLS:

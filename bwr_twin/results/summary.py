@@ -21,10 +21,13 @@ def summary_table(metrics: dict) -> str:
     reclaim = metrics.get("reclaim")
     if reclaim is not None:
         load = reclaim["digging_force_max_N"]
+        # Two CVs (std/mean, without unit) follow on these lines: of the rate while the belt
+        # carries, and of the rate in steady cutting; each says which.
         lines.append(
-            f"reclaimed {reclaim['mass_t']:.1f} t ({reclaim['volume_m3']:.1f} m³): mean {reclaim['rate_mean_tph']:.0f} t/h "
-            f"over {reclaim['carrying_time_s']:.0f} s of carrying, CV {reclaim['rate_cv']:.2f}, peak "
-            f"{reclaim['rate_max_tph']:.0f} t/h; spilled {reclaim['spill_t']:.1f} t"
+            f"reclaimed {reclaim['mass_t']:.1f} t ({reclaim['volume_m3']:.1f} m³): "
+            f"mean {reclaim['rate_mean_tph']:.0f} t/h over {reclaim['carrying_time_s']:.0f} s of carrying, "
+            f"peak {reclaim['rate_max_tph']:.0f} t/h, reclaim rate CV while carrying (std/mean) "
+            f"{reclaim['rate_cv']:.2f}; spilled {reclaim['spill_t']:.1f} t"
             + (f"; digging load up to {load / 1e3:.0f} kN" if load > 0 else "")
         )
         if "target_rate_tph" in reclaim:
@@ -37,18 +40,26 @@ def summary_table(metrics: dict) -> str:
 
 def plan_line(reclaim: dict) -> str:
     """How a bench plan was carried out: the rate in steady cutting against its target, the
-    landing, the over-cut and the tonnes of each bench."""
+    landing, the over-cut and the tonnes of each bench.
+
+    `steady_within_10pct` is a fraction (0-1) of the steady cutting time, whatever its name says:
+    the line gives it as such, and as a percentage."""
     target, steady = reclaim["target_rate_tph"], reclaim["steady_time_s"]
     if steady > 0:
-        rate = (f"steady cutting {steady:.0f} s at {reclaim['steady_rate_mean_tph']:.0f} t/h "
-                f"({100 * (reclaim['steady_rate_mean_tph'] / target - 1):+.1f} % of the {target:.0f} t/h target), "
-                f"CV {reclaim['steady_rate_cv']:.3f}, {100 * reclaim['steady_within_10pct']:.0f} % of it within ±10 %")
+        mean, cv = reclaim["steady_rate_mean_tph"], reclaim["steady_rate_cv"]
+        within, off = reclaim["steady_within_10pct"], 100 * (mean / target - 1)
+        rate = (f"steady cutting {steady:.0f} s at a mean {mean:.0f} t/h ({abs(off):.1f} % "
+                f"{'below' if off < 0 else 'above'} the {target:.0f} t/h target), "
+                f"steady reclaim rate CV (std/mean) {'n/a' if cv is None else f'{cv:.3f}'}, "
+                f"within ±10 % of the target for {within:.2f} of the steady cutting time ({100 * within:.0f} %)")
     else:
         rate = f"no steady cutting (target {target:.0f} t/h)"
     landing = reclaim["landing_error_m"]
     benches = ", ".join(f"{t:.0f}" for t in reclaim["bench_t"])
+    planned = ", ".join(f"{t:.0f}" for t in reclaim["bench_planned_t"])
     return (f"{rate}; landing error {landing:.3f} m; over-cut up to {reclaim['overcut_max_m']:.2f} m; "
-            f"bench tonnes {benches} t" if landing is not None else f"{rate}; the wheel never met the pile")
+            f"bench tonnes {benches} t (planned {planned} t)" if landing is not None
+            else f"{rate}; the wheel never met the pile")
 
 
 def _largest(axis_metrics: dict, j: int, kind: str, per: str) -> str:
