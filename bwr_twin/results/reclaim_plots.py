@@ -3,20 +3,32 @@ and the reclaim rate, cut depth, wheel power and digging load over time."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from bwr_twin.results.plots import DPI, fit_titles
 from bwr_twin.sim.record import RunResult
+
+
+def reclaim_figures(result: RunResult, subtitle: str) -> Iterator[tuple[str, Figure]]:
+    """pile.png and reclaim.png, as (file name, figure)."""
+    yield "pile.png", _pile_figure(result, subtitle)
+    yield "reclaim.png", _rate_figure(result, subtitle)
 
 
 def save_reclaim_figures(result: RunResult, out_dir: Path, subtitle: str) -> list[Path]:
     """Write pile.png and reclaim.png into out_dir; returns their paths."""
-    return [_pile_figure(result, out_dir, subtitle), _rate_figure(result, out_dir, subtitle)]
+    paths = []
+    for name, fig in reclaim_figures(result, subtitle):
+        paths.append(Path(out_dir) / name)
+        fig.savefig(paths[-1], dpi=DPI)
+    return paths
 
 
-def _pile_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
+def _pile_figure(result: RunResult, subtitle: str) -> Figure:
     pile = result.reclaim
     extent = (pile.x[0], pile.x[-1], pile.y[0], pile.y[-1])
     cut = pile.z_start - pile.z_end
@@ -37,12 +49,11 @@ def _pile_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
     before.legend(loc="upper right")
     removed.set_xlabel("X, along the rail [m]")
     fig.suptitle(f"The stockpile, dug\n{subtitle}")
-    path = out_dir / "pile.png"
-    fig.savefig(path, dpi=110)
-    return path
+    fit_titles(fig)
+    return fig
 
 
-def _rate_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
+def _rate_figure(result: RunResult, subtitle: str) -> Figure:
     r, m = result.reclaim, result.metrics["reclaim"]
     fig = Figure(figsize=(10, 9), layout="constrained")
     rate, depth, power, force = fig.subplots(4, 1, sharex=True)
@@ -58,9 +69,10 @@ def _rate_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
     rate.set_ylabel("rate [t/h]")
     rate.set_title(title)
     rate.legend(loc="upper right")
-    depth.plot(result.time, r.cut_depth, "C1-", lw=0.8)
+    # A line alone in its panel is named by the panel's label.
+    depth.plot(result.time, r.cut_depth, "C1-", lw=0.8, label="cut depth")
     depth.set_ylabel("cut depth [m]")
-    power.plot(result.time, r.wheel_power / 1e3, "C2-", lw=0.8)
+    power.plot(result.time, r.wheel_power / 1e3, "C2-", lw=0.8, label="wheel power")
     power.set_ylabel("wheel power [kW]")
     for label, component, style in (("X", 0, "C0-"), ("Y", 1, "C1-"), ("Z", 2, "C2-")):
         force.plot(result.time, r.digging_force[:, component] / 1e3, style, lw=0.8, label=label)
@@ -70,6 +82,5 @@ def _rate_figure(result: RunResult, out_dir: Path, subtitle: str) -> Path:
     for ax in (rate, depth, power, force):
         ax.grid(alpha=0.3)
     fig.suptitle(f"Reclaim rate, cut depth, wheel power and digging load on the wheel (world frame)\n{subtitle}")
-    path = out_dir / "reclaim.png"
-    fig.savefig(path, dpi=110)
-    return path
+    fit_titles(fig)
+    return fig
