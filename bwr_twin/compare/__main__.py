@@ -10,7 +10,8 @@ controller runs seeds 1..N as one lockstep.
 
 DIR holds comparison.csv and comparison.md (per controller and axis: the worst max and the mean
 RMS error, peak and RMS drive force, drive energy and time at saturation, over the seeds, in
-engineering units), errors.png and drive_forces.png (seed 1 of every controller overlaid) and
+engineering units), errors.png (seed 1 of every controller overlaid), drive_forces.png (each
+controller's band from the least to the most over its seeds, and its mean) and
 one run directory per controller and seed, as `bwr_twin.run` writes it without figures, for
 `bwr_twin.replay`. DIR appears only when complete. Bad input exits with status 2 and one line.
 """
