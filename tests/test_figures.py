@@ -22,7 +22,8 @@ from test_reclaim_plan import small_scene
 
 from bwr_twin.compare.report import binned, comparison_figures
 from bwr_twin.config.scene import load_scene
-from bwr_twin.results.plots import fit_titles, is_papers_machine, number_points, run_figures
+from bwr_twin.results.layout import fit_titles
+from bwr_twin.results.plots import is_papers_machine, number_points, run_figures
 from bwr_twin.sim.lockstep import simulate, simulate_grouped
 
 CONTROLLERS = ("pid_paper", "paper_individual_gains")

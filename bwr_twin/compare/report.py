@@ -12,7 +12,7 @@ from matplotlib.figure import Figure  # no pyplot: no global state, no display b
 
 from bwr_twin.compare.table import as_csv, as_markdown, comparison_rows
 from bwr_twin.model.machine import AXES, UNITS, to_display
-from bwr_twin.results.plots import DPI, fit_titles
+from bwr_twin.results.layout import DPI, fit_titles
 from bwr_twin.results.rundir import staged_directory, write_run
 from bwr_twin.sim.record import RunResult
 

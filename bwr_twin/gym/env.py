@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium
-import numpy as np
 
 from bwr_twin.gym.actions import DEFAULT_ACCELERATION_SCALE, as_action
 from bwr_twin.gym.episodes import Episodes

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from bwr_twin.results.plots import DPI, fit_titles
+from bwr_twin.results.layout import DPI, fit_titles
 from bwr_twin.sim.record import RunResult
 
 

@@ -22,7 +22,6 @@ from asyncua.server.user_managers import UserManager
 
 from bwr_twin.errors import BwrError
 from bwr_twin.textfile import read_text
-from bwr_twin.serve.certificates import check_certificate
 from bwr_twin.serve.logins import install_login_checks
 
 SCHEME = "pbkdf2_sha256"

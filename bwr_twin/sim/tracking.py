@@ -21,7 +21,7 @@ from bwr_twin.control.rate import RateSignals, WheelCalibration
 from bwr_twin.errors import EnvelopeError, PluginError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_scene
-from bwr_twin.planning.follower import BenchReference, PathReference, Phase, Stage
+from bwr_twin.planning.follower import BenchReference, PathReference, Phase
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sim.outcome import PlanOutcome
 from bwr_twin.sim.plugins import call, checked, construct, describe
