@@ -80,8 +80,7 @@ class FuzzyModelController(Controller):
 
         `ids` names the runs whose forces matter (None: all); the others get no belief update.
         """
-        _acceleration_command(q_measured, qd_measured, q_desired.reshape(-1, 3), qd_desired.reshape(-1, 3),
-                              qdd_desired.reshape(-1, 3), self._scale_e, self._scale_ec, self._output_gain,
+        _acceleration_command(q_measured, qd_measured, q_desired, qd_desired, qdd_desired, self._scale_e, self._scale_ec, self._output_gain,
                               self._feedforward, self._surface.kernel, self.fuzzy_output, self.acceleration_command)
         return self.belief.torque_at(q_measured, qd_measured, self.acceleration_command, ids)
 
@@ -90,7 +89,9 @@ class FuzzyModelController(Controller):
 def _acceleration_command(q_measured, qd_measured, q_desired, qd_desired, qdd_desired, scale_e, scale_ec,
                           output_gain, feedforward, kernel, fuzzy_output, u):  # pragma: no cover - compiled
     """u_i = K_out,i FLC(K_e e_i, K_ec ed_i) [+ qdd_d,i] for every run and axis; the reference
-    is (1, 3) when shared by every run."""
+    is (3,) when shared by every run, or (runs, 3)."""
+    q_desired, qd_desired = q_desired.reshape((-1, 3)), qd_desired.reshape((-1, 3))
+    qdd_desired = qdd_desired.reshape((-1, 3))
     runs = q_measured.shape[0]
     shared = q_desired.shape[0] == 1
     for r in range(runs):

@@ -10,9 +10,6 @@ disturbance forces enter through `qfrc_applied`.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-
 import mujoco
 import numba
 import numpy as np
@@ -141,13 +138,18 @@ def _any(counts):  # pragma: no cover - compiled
     return False
 
 
-@contextlib.contextmanager
-def mujoco_warnings() -> Iterator[list[str]]:
-    """Collect MuJoCo's warning texts instead of letting MuJoCo print them and write a log file."""
-    previous = mujoco.get_mju_user_warning()
-    texts: list[str] = []
-    mujoco.set_mju_user_warning(texts.append)
-    try:
-        yield texts
-    finally:
-        mujoco.set_mju_user_warning(previous)
+class mujoco_warnings:  # noqa: N801 - used as a function: `with mujoco_warnings() as texts:`
+    """Collect MuJoCo's warning texts instead of letting MuJoCo print them and write a log file.
+
+    A class rather than a generator: a Gymnasium step enters it every control period."""
+
+    __slots__ = ("texts", "_previous")
+
+    def __enter__(self) -> list[str]:
+        self._previous = mujoco.get_mju_user_warning()
+        self.texts: list[str] = []
+        mujoco.set_mju_user_warning(self.texts.append)
+        return self.texts
+
+    def __exit__(self, *exc_info) -> None:
+        mujoco.set_mju_user_warning(self._previous)
