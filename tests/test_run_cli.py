@@ -151,3 +151,38 @@ def test_every_command_explains_itself(command):
     proc = subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("usage: ") and "Traceback" not in proc.stderr
+
+
+def test_the_summary_names_each_cv_and_gives_the_steady_share_as_a_fraction():
+    """The reclaim lines `run` prints, from heavy_bench_reclaim's metrics (seed 1): each CV says
+    whose rate it is and that it is std/mean, `steady_within_10pct` (0-1, whatever its name) is a
+    fraction of the steady cutting time, every other number has its unit, and a null
+    `steady_rate_cv` (a steady rate of mean zero) is printed as n/a."""
+    from bwr_twin.results.summary import summary_table
+
+    axis = {"position_error_max": 0.064, "position_error_max_time": 1034.1, "velocity_error_max": 0.019,
+            "velocity_error_max_time": 173.2, "acceleration_error_max": 0.052, "acceleration_error_max_time": 527.3,
+            "position_error_rms": 0.0147}
+    reclaim = {"mass_t": 795.2, "volume_m3": 331.3, "rate_mean_tph": 5184.0, "rate_cv": 0.5703, "spill_t": 0.0,
+               "rate_max_tph": 9001.0, "carrying_time_s": 552.24, "digging_force_max_N": 184_633.0,
+               "target_rate_tph": 8000.0, "steady_time_s": 133.24, "steady_rate_mean_tph": 7929.0,
+               "steady_rate_cv": 0.05639, "steady_within_10pct": 0.9402, "landing_error_m": 0.04879,
+               "overcut_max_m": 0.4592, "bench_t": [795.2], "bench_planned_t": [772.2]}
+    metrics = {**dict.fromkeys(AXES, axis), "cp_error_max": 0.2945, "cp_error_max_time": 1035.4, "reclaim": reclaim}
+
+    lines = summary_table(metrics).splitlines()
+    assert lines[-2] == ("reclaimed 795.2 t (331.3 m³): mean 5184 t/h over 552 s of carrying, peak 9001 t/h, "
+                         "reclaim rate CV while carrying (std/mean) 0.57; spilled 0.0 t; digging load up to 185 kN")
+    assert lines[-1] == ("steady cutting 133 s at a mean 7929 t/h (0.9 % below the 8000 t/h target), "
+                         "steady reclaim rate CV (std/mean) 0.056, within ±10 % of the target for 0.94 of the "
+                         "steady cutting time (94 %); landing error 0.049 m; over-cut up to 0.46 m; "
+                         "bench tonnes 795 t (planned 772 t)")
+    text = "\n".join(lines)  # no CV but these two, each named
+    named = ("reclaim rate CV while carrying (std/mean)", "steady reclaim rate CV (std/mean)")
+    assert text.count("CV") == 2 and all(text.count(label) == 1 for label in named)
+
+    stalled = {**reclaim, "steady_rate_mean_tph": 0.0, "steady_rate_cv": None, "steady_within_10pct": 0.0}
+    plan = summary_table({**metrics, "reclaim": stalled}).splitlines()[-1]
+    assert plan.startswith("steady cutting 133 s at a mean 0 t/h (100.0 % below the 8000 t/h target), "
+                           "steady reclaim rate CV (std/mean) n/a, within ±10 % of the target for 0.00 of the "
+                           "steady cutting time (0 %);"), plan

@@ -31,7 +31,8 @@ def main() -> None:
     args = parser.parse_args()
     seed = {"simulation.seed": args.seed}
 
-    print("| scene | reclaimed | mean rate while carrying | CV | peak | spill | dug | largest digging load |")
+    print("| scene | reclaimed | mean rate while carrying | reclaim rate CV while carrying (std/mean) | peak "
+          "| spill | dug | largest digging load |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for name in DIGGING_SCENES:
         m = simulate(load_scene(SCENES / f"{name}.toml", seed)).metrics["reclaim"]

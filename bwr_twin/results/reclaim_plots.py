@@ -60,11 +60,14 @@ def _rate_figure(result: RunResult, subtitle: str) -> Figure:
     rate.plot(result.time, r.rate, "C0-", lw=0.8, label="reclaim rate")
     rate.axhline(m["wheel_capacity_tph"], color="C3", ls="--", lw=1.0, label="bucket capacity")
     title = (f"{m['mass_t']:.0f} t reclaimed, {m['spill_t']:.1f} t spilled; "
-             f"mean {m['rate_mean_tph']:.0f} t/h while carrying, CV {m['rate_cv']:.2f}")
+             f"mean {m['rate_mean_tph']:.0f} t/h while carrying, "
+             f"reclaim rate CV while carrying (std/mean) {m['rate_cv']:.2f}")
     if "target_rate_tph" in m:  # a bench plan's target, and how steady cutting held it
         rate.axhline(m["target_rate_tph"], color="k", ls=":", lw=1.0, label="target")
         if m["steady_time_s"] > 0:
-            title += (f"\nsteady cutting: {m['steady_rate_mean_tph']:.0f} t/h, CV {m['steady_rate_cv']:.3f}, "
+            cv = m["steady_rate_cv"]  # None if the steady rate's mean is zero
+            title += (f"\nsteady cutting: {m['steady_rate_mean_tph']:.0f} t/h, "
+                      f"steady reclaim rate CV (std/mean) {'n/a' if cv is None else f'{cv:.3f}'}, "
                       f"{100 * m['steady_within_10pct']:.0f} % within ±10 % of the target")
     rate.set_ylabel("rate [t/h]")
     rate.set_title(title)
