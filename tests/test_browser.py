@@ -3,7 +3,10 @@ slider, and the exported HTML plays from a file:// URL. Screenshots go to test-a
 
 The browser is Debian's `chromium`, driven by Python playwright (never `playwright install`).
 Without it these tests skip and say why; with CI=true a missing browser fails them instead.
-WebGL renders in software there, so waits are generous.
+WebGL renders in software there, so waits are generous: every wait is on a state (a control
+shown and enabled, a button's new label, the player's time, a pose), never a fixed sleep, and every
+Playwright call waits up to WAIT_MS, clicks included (a click first waits for the control's box
+to stand still over two animation frames, which take seconds each on a busy machine).
 """
 
 import io
@@ -18,6 +21,11 @@ from headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
 from bwr_twin.replay import Recording, ReplayServer, export_html
 from bwr_twin.replay.geometry import visual_geoms
+
+try:
+    from playwright.sync_api import expect
+except ImportError:  # the browser fixture skips these tests, and says why
+    expect = None
 
 pytestmark = pytest.mark.browser
 
@@ -42,22 +50,24 @@ def browser():
     except ImportError:
         _unavailable("the playwright Python package is not installed (pip install -e '.[dev]')")
     with chromium_context(chromium) as context:
+        context.set_default_timeout(WAIT_MS)  # goto, click, screenshot: not Playwright's 30 s
         yield context
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
+def record(folder, via_points) -> Recording:
+    """The individual-gains scene over `via_points`, simulated and read back as the replay reads it."""
     from bwr_twin.config.scene import load_scene
     from bwr_twin.results.rundir import write_run
     from bwr_twin.sim.lockstep import simulate
 
-    run_dir = tmp_path_factory.mktemp("browser") / "short"
-    write_run(
-        simulate(load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS})),
-        run_dir,
-        plots=False,
-    )
-    return Recording.from_run_dir(run_dir)
+    write_run(simulate(load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": via_points})),
+              folder, plots=False)
+    return Recording.from_run_dir(folder)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    return record(tmp_path_factory.mktemp("browser") / "short", SHORT_VIA_POINTS)
 
 
 def wait_for_machine(page, geoms) -> None:
@@ -68,6 +78,21 @@ def wait_for_machine(page, geoms) -> None:
         timeout=WAIT_MS,
         polling=100,
     )
+
+
+def click(control) -> None:
+    """A user's click on a control of the page, once it shows and is enabled."""
+    expect(control).to_be_visible(timeout=WAIT_MS)
+    expect(control).to_be_enabled(timeout=WAIT_MS)
+    control.click(timeout=WAIT_MS)
+
+
+def until(condition, what: str) -> None:
+    """Wait for a condition of the replay server's own state, which the page changes."""
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while not condition():
+        assert time.monotonic() < deadline, f"not within {WAIT_MS / 1000:g} s: {what}"
+        time.sleep(0.1)
 
 
 def machine_pixels(png: bytes, geoms) -> float:
@@ -85,7 +110,7 @@ def screenshot_showing_machine(page, geoms, name: str) -> bytes:
     """A screenshot, saved to test-artifacts/, once the machine's colour shows (the page fades in)."""
     deadline = time.monotonic() + WAIT_MS / 1000
     while True:
-        png = page.screenshot()
+        png = page.screenshot(timeout=WAIT_MS)
         if machine_pixels(png, geoms) > MACHINE_SHARE or time.monotonic() > deadline:
             break
         time.sleep(1.0)
@@ -101,10 +126,10 @@ def test_page_renders_the_machine_and_play_advances_time(browser, recording):
             page.goto(server.url)
             wait_for_machine(page, server.view.geoms)
             play = page.get_by_role("button", name="Play")
-            play.wait_for(timeout=WAIT_MS)
             time_slider = page.locator('[role="slider"][aria-valuemax="20"]')  # the run lasts 20 s
-            before = float(time_slider.get_attribute("aria-valuenow"))
-            play.click()
+            expect(time_slider).to_be_visible(timeout=WAIT_MS)
+            before = float(time_slider.get_attribute("aria-valuenow", timeout=WAIT_MS))
+            click(play)
             page.wait_for_function(
                 "before => Number(document.querySelector('[role=slider][aria-valuemax=\"20\"]')"
                 ".getAttribute('aria-valuenow')) > before + 1",
@@ -137,25 +162,35 @@ def test_a_second_controller_rides_along_as_a_translucent_ghost(browser, recordi
             machine_triangles = sum(len(g.faces) for g in server.view.geoms)
             page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {machine_triangles + ghost_triangles}",
                                    timeout=WAIT_MS, polling=100)
-            page.get_by_text("Translucent: pid").wait_for(timeout=WAIT_MS)
+            expect(page.get_by_text("Translucent: pid")).to_be_visible(timeout=WAIT_MS)
             server.player.seek(10.0)
-            time.sleep(1.0)
-            screenshot_showing_machine(page, server.view.geoms, "replay_ghost.png")
             # Each machine stands where its own run stood at 10 s.
-            for view, run in ((server.view.ghost, ghost), (server.view, recording)):
-                positions, _ = view.poser.poses(run.at(10.0).q_actual)
-                frames = view.bodies if isinstance(view.bodies, list) else [view.bodies.get(n) for n in view.poser.names]
-                for frame, expected in zip(frames, positions):
-                    if frame is not None:
-                        np.testing.assert_allclose(frame.position, expected, atol=1e-6)
+            pairs = ((server.view.ghost, ghost), (server.view, recording))
+            until(lambda: all(stands_at(view, run, 10.0) for view, run in pairs), "each machine at its run's 10 s")
+            screenshot_showing_machine(page, server.view.geoms, "replay_ghost.png")
             assert not np.allclose(ghost.at(10.0).q_actual, recording.at(10.0).q_actual)
         finally:
             page.close()
 
 
-def test_two_tabs_share_one_timeline(browser, recording):
-    with ReplayServer(recording, port=0) as server:
-        server.player.set_speed(1)  # the 20 s run must not end while the tabs catch up
+def stands_at(view, run, t: float) -> bool:
+    """Whether the replay's machine (or its ghost) stands where `run` stood at time t."""
+    positions, _ = view.poser.poses(run.at(t).q_actual)
+    frames = view.bodies if isinstance(view.bodies, list) else [view.bodies.get(n) for n in view.poser.names]
+    return all(np.allclose(frame.position, expected, atol=1e-6)
+               for frame, expected in zip(frames, positions) if frame is not None)
+
+
+# The short path over four of WAIT_MS: played at the slowest speed (1 x real time), the run cannot
+# end, and turn Pause back into Play, while two software-rendered tabs catch up, however slowly.
+LONG_S = 4 * WAIT_MS / 1000
+LONG_VIA_POINTS = [SHORT_VIA_POINTS[0], {**SHORT_VIA_POINTS[1], "t": LONG_S}]
+
+
+def test_two_tabs_share_one_timeline(browser, tmp_path):
+    long = record(tmp_path / "long", LONG_VIA_POINTS)
+    with ReplayServer(long, port=0) as server:
+        server.player.set_speed(1)
         tabs = [browser.new_page(), browser.new_page()]
         try:
             for tab in tabs:
@@ -163,12 +198,18 @@ def test_two_tabs_share_one_timeline(browser, recording):
                     {"width": 800, "height": 600}
                 )  # two software-rendered tabs: keep them small
                 tab.goto(server.url)
-                tab.get_by_role("button", name="Play").wait_for(timeout=WAIT_MS)
-            tabs[0].get_by_role("button", name="Play").click()
-            tabs[1].get_by_role("button", name="Pause").wait_for(timeout=WAIT_MS)  # the other tab sees it
-            tabs[1].get_by_role("button", name="Pause").click()
-            tabs[0].get_by_role("button", name="Play").wait_for(timeout=WAIT_MS)
-            slider = '[role="slider"][aria-valuemax="20"]'
+                expect(tab.get_by_role("button", name="Play")).to_be_enabled(timeout=WAIT_MS)
+            click(tabs[0].get_by_role("button", name="Play"))
+            until(lambda: server.player.playing, "the player playing")
+            for tab in tabs:  # the other tab sees it too
+                expect(tab.get_by_role("button", name="Pause")).to_be_visible(timeout=WAIT_MS)
+            tabs[1].bring_to_front()
+            click(tabs[1].get_by_role("button", name="Pause"))
+            until(lambda: not server.player.playing, "the player paused")
+            assert server.player.time < server.player.end  # paused by the click, not by the run's end
+            for tab in tabs:
+                expect(tab.get_by_role("button", name="Play")).to_be_visible(timeout=WAIT_MS)
+            slider = f'[role="slider"][aria-valuemax="{LONG_S:g}"]'
             server.player.seek(12.0)
             for tab in tabs:
                 tab.wait_for_function(
@@ -221,15 +262,13 @@ def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
                                    timeout=WAIT_MS, polling=100)  # the browser draws the whole pile
             assert all(len(t._cut.faces) == 1 for t in tiles)  # nothing cut yet: each a placeholder
             server.player.seek(float(dig.plan.time[-1]))
-            time.sleep(2.0)
+            until(lambda: any(len(t._cut.faces) > 1 for t in tiles), "a tile sent again as dug")
             cut = [t for t in tiles if len(t._cut.faces) > 1]
-            assert cut, "no tile was sent again as dug"
             start, tile = server.view.pile._start, cut[0]
             assert (start[tile.rows, tile.cols].ravel() - tile._cut.vertices[:, 2]).max() > 0.3  # m lower than it stood
             screenshot_showing_machine(page, server.view.geoms, "replay_pile_dug.png")
             server.player.seek(0.0)  # back in time: the pile stands whole again
-            time.sleep(2.0)
-            assert all(len(t._cut.faces) == 1 for t in tiles)
+            until(lambda: all(len(t._cut.faces) == 1 for t in tiles), "every tile a placeholder again")
         finally:
             page.close()
 
@@ -243,14 +282,6 @@ JUMP_BUTTONS = """() => {
 # viser draws labels on the canvas, not in the DOM: the page's scene tree (its E2E hook) holds them.
 SCENE_LABELS = """() => Object.values(window.__viserSceneTree?.getState() ?? {})
     .filter(n => n?.message?.type === 'LabelMessage').map(n => n.message.props.text)"""
-
-
-def until(condition, what: str) -> None:
-    """Wait for a condition of the replay server's own state, which the page changes."""
-    deadline = time.monotonic() + WAIT_MS / 1000
-    while not condition():
-        assert time.monotonic() < deadline, f"not within {WAIT_MS / 1000:g} s: {what}"
-        time.sleep(0.1)
 
 
 def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_path):
@@ -272,14 +303,14 @@ def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_pat
         try:
             page.goto(server.url)
             jump = page.get_by_role("button", name="bench 1")
-            jump.wait_for(timeout=WAIT_MS)
+            expect(jump).to_be_enabled(timeout=WAIT_MS)
             assert page.evaluate(JUMP_BUTTONS) == ["bench 1"]  # the benches only, not every pass
             page.wait_for_function(f"() => ({SCENE_LABELS})().length > 0", timeout=WAIT_MS, polling=100)
             labels = page.evaluate(SCENE_LABELS)
             lines = [line for label in labels for line in label.split("\n")]  # close points share a label
             assert any(line.startswith("bench 1  t = 0 s") for line in lines), labels
             assert not any(line.startswith("pass") for line in lines), labels
-            page.get_by_text("plan: bench 1").first.wait_for(timeout=WAIT_MS)  # the readout
+            expect(page.get_by_text("plan: bench 1").first).to_be_visible(timeout=WAIT_MS)  # the readout
             server.player.seek(50.0)
             until(lambda: server.player.time == 50.0, "the seek to 50 s")
             jump.dispatch_event("click")  # click() waits ~25 s for the button to be "stable" here
