@@ -65,3 +65,15 @@ def test_malformed_mjcf_is_a_model_error(tmp_path):
     path.write_text("<mujoco><worldbody><body></mujoco>")
     with pytest.raises(ModelError, match="broken.xml: MuJoCo cannot compile it"):
         Machine(path)
+
+
+def test_paper_machine_has_the_assumed_drive_ratings_of_its_readme():
+    """mjcf/README.md, drive ratings of bwr.xml: the paper gives none, these are assumed."""
+    machine = Machine(PAPER_MJCF)
+    np.testing.assert_array_equal(machine.drive_limits, [[-3.2e3, 3.2e3], [-3.0e4, 3.0e4], [-5.6e5, 1.1e6]])
+    np.testing.assert_array_equal(machine.rated_speed, [0.5, 0.02, 0.002])
+    # Raising, the luff drive holds 2.24 x the boom's largest gravity torque (m3 g x 25 m at luff 0), as the
+    # heavy machine's does.
+    data = mujoco.MjData(machine.model)
+    mujoco.mj_forward(machine.model, data)
+    assert machine.drive_limits[2, 1] / data.qfrc_bias[2] == pytest.approx(2.24, abs=0.01)
