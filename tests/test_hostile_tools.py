@@ -279,6 +279,86 @@ def test_the_controllers_page_example_loads_from_a_folder_outside_scenes(tmp_pat
     assert scene.trajectory.via_points[-1].t == 700.0 and scene.machine.mjcf.name == "bwr.xml"
 
 
+
+# 14. Physics that cannot be: a bad scene extends a shipped one and changes one physical input.
+# (id, the scene's text after its `extends` line, pattern of the one error line)
+PHYSICS_REFUSALS = [
+    ("bulk-density-1e30", "heavy_dig_pile", "[stockpile]\nbulk_density = 1e30\n",
+     r"bad.toml: 'stockpile.bulk_density' must lie in \[150, 5000\] kg/m3 \(.*CEMA.*\), got 1e\+30"),
+    ("bulk-density-in-t-per-m3", "heavy_dig_pile", "[stockpile]\nbulk_density = 2.4\n",
+     r"bad.toml: 'stockpile.bulk_density' must lie in \[150, 5000\] kg/m3 .*got 2.4$"),
+    ("repose-in-radians", "heavy_dig_pile", "[stockpile.windrow]\nangle_of_repose = 0.65\n",
+     r"bad.toml: 'stockpile.windrow.angle_of_repose' must lie in \[10, 60\] deg \(.*CEMA Table 3-1\), "
+     r"got 0.65"),
+    ("wind-beyond-the-record", "heavy_wind", "[plant]\nwind_speed = 110.0\n",
+     r"bad.toml: 'plant.wind_speed' \+ 'plant.gust_amplitude' \(110 \+ 5 m/s\) must be at most 113 m/s, the "
+     r"strongest gust ever measured"),
+    ("air-density-of-water", "paper_individual_gains", "[plant]\nair_density = 1000.0\n",
+     r"bad.toml: 'plant.air_density' must lie in \[0.5, 1.6\] kg/m3 \(.*ISO 2533\), got 1000"),
+    ("lateral-ratio-3", "heavy_dig_pile", "[digging]\nlateral_ratio = 3.0\n",
+     r"bad.toml: 'digging.lateral_ratio' must lie in \[0, 1\] \(.*\), got 3"),
+    ("travel-friction-beyond-the-weight", "paper_individual_gains",
+     "[plant]\nfrictionloss = [1e6, 0.0, 0.0]\n",
+     r"bad.toml: 'plant.frictionloss' \(travel\) 1e\+06 N is more than friction can be on bwr.xml: at most "
+     r"6.87e\+04 N, its weight"),
+    ("slew-friction-1e30", "heavy_coulomb_friction", "[plant]\nfrictionloss = [5.85e4, 1e30, 1.0e6]\n",
+     r"bad.toml: 'plant.frictionloss' \(slew\) 1e\+30 N m is more than friction can be on bwr_heavy.xml: "
+     r"at most 6.9e\+08 N m, its weight at the CP's 59 m reach"),
+    ("idle-power-beyond-the-wheel-drive", "heavy_dig_pile", "[digging]\nidle_power = 5e6\n",
+     r"bad.toml: 'digging.idle_power' 5e\+06 W is more than the wheel drive of bwr_heavy.xml is rated for "
+     r"\(1e\+06 W, its 'wheel_power'\)"),
+    ("grid-coarser-than-the-windrow", "heavy_dig_pile", "[stockpile]\ngrid_spacing = 10.0\n",
+     r"bad.toml: 'stockpile.grid_spacing' 10 m gives 5 cells across the windrow's footprint of "
+     r"159.8 x 49.81 m \(X x Y\), fewer than 8: .*choose at most 6.23 m"),
+    ("grid-beyond-the-windrow", "heavy_dig_pile", "[stockpile]\ngrid_spacing = 1000.0\n",
+     r"bad.toml: 'stockpile.grid_spacing' 1000 m gives 0.05 cells across the windrow's footprint "
+     r".*fewer than 8"),
+    ("grid-coarser-than-the-survey", "heavy_reclaim",
+     '[stockpile]\nsurface_file = "survey.npz"\ngrid_spacing = 1.0\n',
+     r"bad.toml: 'stockpile.grid_spacing' 1 m gives 5.5 cells across the surveyed pile of 10.5 x 5.5 m "
+     r"\(X x Y\), fewer than 8: .*choose at most 0.688 m"),
+    ("survey-without-a-pile", "heavy_reclaim", '[stockpile]\nsurface_file = "ground.npz"\n',
+     r"bad.toml: 'stockpile.surface_file' .*ground.npz: holds no height above the yard floor \(Z = 0 m\): "
+     r"there is no pile"),
+]
+
+
+def _surveys(folder: Path) -> None:
+    """survey.npz: a 10 x 5 m block of 5 m on a 40 x 30 m survey at 0.5 m; ground.npz: the ground alone."""
+    import numpy as np
+
+    x, y = np.arange(0.0, 40.0, 0.5), np.arange(20.0, 50.0, 0.5)
+    z = np.zeros((len(y), len(x)))
+    np.savez(folder / "ground.npz", x=x, y=y, z=z)
+    z[20:30, 30:50] = 5.0
+    np.savez(folder / "survey.npz", x=x, y=y, z=z)
+
+
+@pytest.mark.parametrize("case", PHYSICS_REFUSALS, ids=[case[0] for case in PHYSICS_REFUSALS])
+def test_physics_that_cannot_be_is_refused_and_nothing_is_written(tmp_path, case):
+    _, base, text, pattern = case
+    _surveys(tmp_path)
+    (tmp_path / "bad.toml").write_text(f'extends = "{base}"\n\n{text}')
+    before = snapshot(tmp_path)
+    proc = cli("run", "bad.toml", "--out", "out", "--no-plots", cwd=tmp_path)
+    assert_refused(proc, pattern)
+    assert snapshot(tmp_path) == before and not (tmp_path / "out").exists()
+
+
+def test_a_travel_gain_of_2000_on_the_paper_scene_is_held_at_its_rating_and_flagged(tmp_path):
+    """The paper's machine has assumed drive ratings (mjcf/README.md): a travel output gain of 2,000,
+    which drove it at 80 m/s with 56 MN when it had none, is held at the 3.2 kN rating and flagged."""
+    (tmp_path / "fast.toml").write_text('extends = "paper_individual_gains"\n\n[controller]\n'
+                                        "output_gain = [2000.0, 0.04, 0.06]\n")
+    proc = cli("run", "fast.toml", "--out", "out", "--no-plots", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    travel = json.loads((tmp_path / "out" / "metrics.json").read_text())["travel"]
+    assert travel["drive_limit"] == [-3200.0, 3200.0] and abs(travel["drive_force_max"]) == 3200.0
+    assert travel["beyond_drive_rating_time"] is not None and travel["saturation_fraction"] > 0.5
+    flag = f"travel was commanded beyond its drive rating at {travel['beyond_drive_rating_time']:.2f} s"
+    assert f"warning: {flag}" in proc.stdout
+
+
 # fis evaluate --input (classes 10, 11 and 13): a file of inputs, or stdin, with a bad row, a wrong
 # header, bytes that are not UTF-8, or more rows (times output samples) than the limits.
 # (id, the file's bytes, given on stdin, more arguments, pattern of the one error line)

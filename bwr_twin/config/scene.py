@@ -3,8 +3,9 @@
 A scene names the machine, the reclaim path, the physics and control rates, the imperfect world
 (encoders, disturbances, unmodelled plant effects) and the controller settings. Every key is
 checked against the dataclasses below; a bad file raises SceneError with one line naming the
-file, the key and the rule it broke. `overrides` (dotted keys, as a sweep or the command line
-gives them) are applied before validation, so they are checked exactly like the file.
+file, the key and the rule it broke; a physical input beyond the range of real materials, air and
+machines is refused the same way (bwr_twin.config.bounds). `overrides` (dotted keys, as a sweep or
+the command line gives them) are applied before validation, so they are checked exactly like the file.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from bwr_twin.config.bounds import check_bounds
 from bwr_twin.config.plugins import (
     CONTROLLERS,
     RATE_CONTROLS,
@@ -611,6 +613,7 @@ def _check_rules(scene: Scene) -> None:
     for key, file in files.items():
         if file is not None and not file.is_file():
             raise SceneError(f"{p}: '{key}' names a file that does not exist: {file}")
+    check_bounds(scene)  # physics that cannot be: each physical input within a sane range, with its source
 
 
 def _check_path(scene: Scene) -> None:

@@ -1,0 +1,140 @@
+"""Sane ranges of a scene's physical inputs, each with its source: physics that cannot be is refused.
+
+A scene's types and signs are checked where it is built (bwr_twin.config.scene); this module holds
+the limits beyond which an input describes no real material, atmosphere or machine: a bulk density
+of 1e30 kg/m^3, a pile standing at 2 deg, a wind beyond any ever measured, a Coulomb friction
+beyond the machine's own weight. Each refusal is one line naming the file, the key and the limit.
+The ranges are wide on purpose: every real bulk material and yard lies well inside them, and the
+numbers a typing slip makes (t/m^3 for kg/m^3, radians for degrees) lie far outside.
+
+The limits that need the machine (friction, the wheel drive's idle power) are checked against the
+plant's MJCF and its payloads. Where the pile is sampled (the grid spacing against the pile's
+size) the limit is checked as the pile is built (bwr_twin.stockpile.surface).
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from bwr_twin.errors import ModelError, SceneError
+
+if TYPE_CHECKING:
+    from bwr_twin.config.scene import Scene
+
+# kg/m^3, of the loose, stockpiled material. CEMA, "Belt Conveyors for Bulk Materials" (7th ed.),
+# ch. 3, the table of material characteristics: bituminous coal 40-60 lb/ft^3 (0.64-0.96 t/m^3),
+# iron ore 100-200 lb/ft^3 (1.6-3.2 t/m^3; 2.0-2.6 t/m^3 for the fines and lump of the ore
+# ports), lead ores up to 270 lb/ft^3 (4.3 t/m^3), the heaviest; screened wood chips from
+# 10 lb/ft^3 (0.16 t/m^3), the lightest solid stockpiled in the open.
+BULK_DENSITY = (150.0, 5000.0)
+
+# deg. CEMA, the same book, Table 3-1: a freely formed pile's angle of repose runs from below
+# 20 deg (very free flowing: uniform, round, dry grains) to 40 deg and up (sluggish, irregular,
+# sticky); the table's ores and coals stand at 30-45 deg (docs: about 37-38 deg for coal and ores).
+# No free-formed pile of a bulk solid stands below 10 deg or above 60 deg; 0.65 is 37 deg in radians.
+ANGLE_OF_REPOSE = (10.0, 60.0)
+
+# m/s, the mean wind and its gusts together. The strongest surface gust ever measured: 113.3 m/s
+# (408 km/h) at Barrow Island, Western Australia, in Tropical Cyclone Olivia, 10 April 1996 (World
+# Meteorological Organization, Weather and Climate Extremes Archive). Reclaimers stop at about 20 m/s
+# and are tied down for storms; a storm scene lies within the record, a faster wind lies nowhere.
+WIND_PEAK = 113.0
+
+# kg/m^3. ISO 2533 (the ICAO standard atmosphere): 1.225 kg/m^3 at sea level and 15 degC, 0.526 at
+# 8,000 m, higher than any mine (the highest work at about 5,000-6,000 m); dry air at sea level and
+# -50 degC holds 1.58 kg/m^3 (ideal gas, 101,325 Pa / (287.05 J/(kg K) x 223 K)).
+AIR_DENSITY = (0.5, 1.6)
+
+# The side force of the cut as a share of its tangential (cutting) force. Both machines' scenes
+# take 0.4 (mjcf/README.md: about 100 kN of the heavy wheel's 270 kN); a side force beyond the
+# cutting force itself would have the buckets cut sideways harder than they cut forwards.
+LATERAL_RATIO = (0.0, 1.0)
+
+# The largest Coulomb friction coefficient a drive train can meet: dry mild steel on mild steel
+# grips at about 0.74 at rest (Marks' Standard Handbook for Mechanical Engineers, coefficients of
+# friction), a wheel locked on its rail at most that. With 1, travel friction beyond the machine's
+# weight, or slew and luff friction beyond that weight at the CP's reach (the longest lever the
+# machine has), is friction no machine can have.
+FRICTION_COEFFICIENT = 1.0
+
+_Facts = tuple[str, float, float, float, float]  # machine file name, weight N, reach m, boom m, wheel drive W
+
+
+def check_bounds(scene: Scene) -> None:
+    """SceneError, naming the file, the key and the limit, for a physical input out of its range."""
+    p, pile, plant = scene.path, scene.stockpile, scene.plant
+    if pile is not None:
+        _within(p, "stockpile.bulk_density", pile.bulk_density, BULK_DENSITY, "kg/m3",
+                "from wood chips to lead ore, CEMA's table of bulk materials")
+        if pile.windrow is not None:
+            _within(p, "stockpile.windrow.angle_of_repose", pile.windrow.angle_of_repose, ANGLE_OF_REPOSE,
+                    "deg", "the angles at which freely formed piles of bulk solids stand, CEMA Table 3-1")
+    peak = plant.wind_speed + plant.gust_amplitude
+    if peak > WIND_PEAK:
+        raise SceneError(f"{p}: 'plant.wind_speed' + 'plant.gust_amplitude' ({plant.wind_speed:g} + "
+                         f"{plant.gust_amplitude:g} m/s) must be at most {WIND_PEAK:g} m/s, the strongest "
+                         "gust ever measured (113.3 m/s, Barrow Island, 1996)")
+    _within(p, "plant.air_density", plant.air_density, AIR_DENSITY, "kg/m3",
+            "the standard atmosphere from sea level at -50 degC to 8,000 m, ISO 2533")
+    if scene.digging is not None:
+        _within(p, "digging.lateral_ratio", scene.digging.lateral_ratio, LATERAL_RATIO, "",
+                "the side force of a cut is a share of its cutting force")
+    if plant.frictionloss is not None or (scene.digging is not None and scene.digging.idle_power > 0):
+        _check_against_machine(scene)
+
+
+def _within(path: Path, key: str, value: float, bounds: tuple[float, float], unit: str, why: str) -> None:
+    low, high = bounds
+    if not low <= value <= high:
+        unit = f" {unit}" if unit else ""
+        raise SceneError(f"{path}: '{key}' must lie in [{low:g}, {high:g}]{unit} ({why}), got {value:g}")
+
+
+def _check_against_machine(scene: Scene) -> None:
+    """Friction within the machine's weight, the wheel's idle power within its drive's rating."""
+    facts = _machine_facts(scene.machine.mjcf, _stamp(scene.machine.mjcf), scene.plant.payload)
+    if facts is None:
+        return  # a model that does not compile is named where it is used
+    name, weight, reach, boom, wheel_power = facts
+    p, friction = scene.path, scene.plant.frictionloss
+    if friction is not None:
+        mu = FRICTION_COEFFICIENT
+        limits = (("travel", mu * weight, "N", "its weight"),
+                  ("slew", mu * weight * reach, "N m", f"its weight at the CP's {reach:.3g} m reach"),
+                  ("luff", mu * weight * boom, "N m", f"its weight at the {boom:.3g} m boom's end"))
+        for value, (axis, limit, unit, lever) in zip(friction, limits):
+            if value > limit:
+                raise SceneError(
+                    f"{p}: 'plant.frictionloss' ({axis}) {value:.3g} {unit} is more than friction can be on "
+                    f"{name}: at most {limit:.3g} {unit}, {lever} ({weight:.3g} N) with a friction "
+                    f"coefficient of {mu:g}"
+                )
+    if scene.digging is not None and scene.digging.idle_power > wheel_power:
+        raise SceneError(f"{p}: 'digging.idle_power' {scene.digging.idle_power:.3g} W is more than the wheel "
+                         f"drive of {name} is rated for ({wheel_power:.3g} W, its 'wheel_power')")
+
+
+def _stamp(path: Path) -> tuple:
+    try:
+        stat = path.stat()
+    except OSError:
+        return ()
+    return (stat.st_mtime_ns, stat.st_size, stat.st_ino)
+
+
+@functools.lru_cache(maxsize=16)
+def _machine_facts(mjcf: Path, stamp: tuple, payloads: tuple) -> _Facts | None:
+    """(file name, weight N, CP reach from the slew axis m, boom length m, wheel drive W) of the
+    plant with its payloads, or None if it does not compile; once per version of the file."""
+    from bwr_twin.model.machine import Machine  # compiles MuJoCo models: only for scenes that need it
+
+    try:
+        machine = Machine(mjcf, payloads=payloads)
+    except ModelError:
+        return None
+    g = machine.geometry
+    weight = float(machine.model.body_mass.sum()) * float(abs(machine.model.opt.gravity[2]))
+    wheel_power = machine.wheel.power if machine.wheel is not None else float("inf")
+    return mjcf.name, weight, float(g.pivot_reach + g.boom_length), float(g.boom_length), float(wheel_power)
