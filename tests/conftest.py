@@ -1,5 +1,6 @@
 """Shared paths and fixtures."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -22,6 +23,16 @@ PAPER_VIA_POINTS = [
 
 # The first 20 s of a reclaim towards the paper's p_int1: the paper scene in seconds, not minutes.
 SHORT_VIA_POINTS = [{"t": 0.0, "p": [0.0, -11.0, 55.0]}, {"t": 20.0, "p": [-3.0, -11.0, 54.0]}]
+
+
+def unrated_paper_mjcf(folder: Path) -> Path:
+    """folder/bwr_unrated.xml: the paper's machine without its (assumed) drive ratings, for
+    physics the ratings forbid: pushes that leave the envelope, forces that make MuJoCo fail."""
+    text = PAPER_MJCF.read_text()
+    text = re.sub(r'\s+forcerange="[^"]*"', "", text)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "bwr_unrated.xml").write_text(text)
+    return folder / "bwr_unrated.xml"
 
 
 def path_table(via_points) -> str:

@@ -9,7 +9,7 @@ import warnings
 import gymnasium
 import numpy as np
 import pytest
-from conftest import ROOT, write_short_scene
+from conftest import PAPER_MJCF, ROOT, unrated_paper_mjcf, write_short_scene
 from gymnasium.utils.env_checker import check_env
 
 import bwr_twin.gym  # noqa: F401  (registers the id)
@@ -27,6 +27,14 @@ HUGE = dict(action_mode="force", force_scale=(1e300, 1e300, 1e300))  # an action
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     return write_short_scene(tmp_path_factory.mktemp("gym"), TINY_VIA_POINTS)
+
+
+@pytest.fixture(scope="module")
+def tiny_unrated(tmp_path_factory):
+    """The tiny scene on the paper's machine without drive ratings: forces beyond any drive's."""
+    folder = tmp_path_factory.mktemp("gym_unrated")
+    unrated = unrated_paper_mjcf(folder)
+    return write_short_scene(folder, TINY_VIA_POINTS, edit=lambda text: text.replace(f'"{PAPER_MJCF}"', f'"{unrated}"'))
 
 
 def steps(env, actions):
@@ -80,8 +88,8 @@ def test_the_path_end_terminates(tiny):
         env.step(np.zeros(3, dtype=np.float32))
 
 
-def test_leaving_the_envelope_truncates(tiny):
-    env = gymnasium.make(ENV_ID, scene=str(tiny), **PUSH).unwrapped
+def test_leaving_the_envelope_truncates(tiny_unrated):
+    env = gymnasium.make(ENV_ID, scene=str(tiny_unrated), **PUSH).unwrapped
     env.reset(seed=1)
     for k in range(200):
         observation, reward, terminated, truncated, info = env.step(np.array([1, 0, 0], dtype=np.float32))
@@ -92,9 +100,9 @@ def test_leaving_the_envelope_truncates(tiny):
     assert observation in env.observation_space and reward < 0
 
 
-def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny, tmp_path, monkeypatch, capfd):
+def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny_unrated, tmp_path, monkeypatch, capfd):
     monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
-    env = gymnasium.make(ENV_ID, scene=str(tiny), **HUGE).unwrapped
+    env = gymnasium.make(ENV_ID, scene=str(tiny_unrated), **HUGE).unwrapped
     env.reset(seed=1)
     observation, reward, terminated, truncated, info = env.step(np.ones(3, dtype=np.float32))
     assert truncated and not terminated and info["ended"].startswith("diverged: MuJoCo")
@@ -102,22 +110,24 @@ def test_a_diverged_run_ends_the_episode_cleanly_and_silently(tiny, tmp_path, mo
     assert capfd.readouterr() == ("", "") and not list(tmp_path.iterdir())
 
 
-def test_force_mode_needs_drive_ratings_or_a_scale(tiny):
-    with pytest.raises(ModelError, match=r"bwr\.xml: action_mode 'force' needs drive ratings.*force_scale"):
-        gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force")
+def test_force_mode_needs_drive_ratings_or_a_scale(tiny, tiny_unrated):
+    with pytest.raises(ModelError, match=r"bwr_unrated\.xml: action_mode 'force' needs drive ratings.*force_scale"):
+        gymnasium.make(ENV_ID, scene=str(tiny_unrated), action_mode="force")
+    paper = gymnasium.make(ENV_ID, scene=str(tiny), action_mode="force").unwrapped  # its assumed ratings
+    assert paper.drive.high.tolist() == [3.2e3, 3.0e4, 1.1e6] and paper.drive.low.tolist() == [3.2e3, 3.0e4, 5.6e5]
     heavy = gymnasium.make(ENV_ID, scene="heavy_reclaim", action_mode="force").unwrapped
     assert heavy.drive.high.tolist() == [5.4e5, 1.13e7, 3.05e7] and heavy.drive.low.tolist() == [5.4e5, 1.13e7, 1.55e7]
     with pytest.raises(SceneError, match="no_such_scene"):
         gymnasium.make(ENV_ID, scene="no_such_scene")
 
 
-def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
+def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny_unrated):
     n, seed, periods = 3, 20, 150
     # PUSH's forces as shares of 1e300 N, so that an action of 1 makes MuJoCo fail.
     actions = np.random.default_rng(1).uniform(-1, 1, (periods, n, 3)) * np.array([1e-293, 1e-292, 1e-292])
     actions[:, 0] = (1e-293, 0, 0)  # sub-environment 0 leaves the envelope again and again
     actions[5, 1] = 1.0  # and sub-environment 1 diverges, alone in its lockstep
-    envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny), **HUGE)
+    envs = gymnasium.make_vec(ENV_ID, num_envs=n, scene=str(tiny_unrated), **HUGE)
     assert isinstance(envs.unwrapped, bwr_twin.gym.ReclaimVectorEnv)
     observations, _ = envs.reset(seed=seed)
     (loop,) = envs.unwrapped.episodes.locksteps
@@ -127,7 +137,7 @@ def test_vector_env_is_one_lockstep_and_matches_single_envs_bit_for_bit(tiny):
     ends, reasons = 0, {why for _, _, _, _, infos in vector if "ended" in infos for why in infos["ended"] if why}
     assert any(why.startswith("diverged") for why in reasons) and any(why.startswith("left") for why in reasons)
     for i in range(n):
-        env = gymnasium.make(ENV_ID, scene=str(tiny), **HUGE).unwrapped
+        env = gymnasium.make(ENV_ID, scene=str(tiny_unrated), **HUGE).unwrapped
         observation, _ = env.reset(seed=seed + i)
         assert np.array_equal(observation, observations[i])
         ended = False

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, write_short_scene
+from conftest import PAPER_MJCF, ROOT, unrated_paper_mjcf, write_short_scene
 
 from bwr_twin.results.ownership import mark
 
@@ -315,13 +315,24 @@ def test_ctrl_c_is_heard_within_a_control_period_of_ten_million_steps(tmp_path):
 # --- 5. runs that leave the machine's limits ------------------------------------------------------------
 
 
-def test_a_run_beyond_the_machine_limits_says_so(tmp_path):
-    write_short_scene(tmp_path, edit=edited(**{"output_gain = [0.01, 0.04, 0.06]": "output_gain = [1e3, 1e3, 1e3]"}))
+@pytest.mark.parametrize("rated", [True, False], ids=["rated drives", "unrated drives"])
+def test_a_run_beyond_the_machine_limits_says_so(tmp_path, rated):
+    """On the paper's machine the drives' (assumed) ratings hold a runaway gain and say so; without
+    ratings the same gain drives the machine out of its envelope and onto its end stops."""
+    gain = {"output_gain = [0.01, 0.04, 0.06]": "output_gain = [1e3, 1e3, 1e3]"}
+    if not rated:
+        gain[f'"{PAPER_MJCF}"'] = f'"{unrated_paper_mjcf(tmp_path)}"'
+    write_short_scene(tmp_path, edit=edited(**gain))
     proc = cli("run", "short.toml", "--out", "o", "--no-plots", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
-    assert metrics["travel"]["left_envelope_time"] > 0 and metrics["travel"]["end_stop_time"] > 0
-    assert "travel left the operating envelope at" in " ".join(metrics["limits"])
+    if rated:
+        assert metrics["travel"]["beyond_drive_rating_time"] is not None
+        assert "travel was commanded beyond its drive rating at" in " ".join(metrics["limits"])
+    else:
+        assert metrics["travel"]["left_envelope_time"] > 0 and metrics["travel"]["end_stop_time"] > 0
+        assert "travel left the operating envelope at" in " ".join(metrics["limits"])
+    assert metrics["limits"]
     for flag in metrics["limits"]:
         assert f"warning: {flag}" in proc.stdout
 

@@ -16,12 +16,8 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from bwr_twin.errors import ModelError, SceneError
-
-if TYPE_CHECKING:
-    from bwr_twin.config.scene import Scene
 
 # kg/m^3, of the loose, stockpiled material. CEMA, "Belt Conveyors for Bulk Materials" (7th ed.),
 # ch. 3, the table of material characteristics: bituminous coal 40-60 lb/ft^3 (0.64-0.96 t/m^3),
@@ -62,8 +58,9 @@ FRICTION_COEFFICIENT = 1.0
 _Facts = tuple[str, float, float, float, float]  # machine file name, weight N, reach m, boom m, wheel drive W
 
 
-def check_bounds(scene: Scene) -> None:
-    """SceneError, naming the file, the key and the limit, for a physical input out of its range."""
+def check_bounds(scene) -> None:
+    """SceneError, naming the file, the key and the limit, for a physical input of `scene` (a
+    bwr_twin.config.scene.Scene, which calls this as it is built) out of its range."""
     p, pile, plant = scene.path, scene.stockpile, scene.plant
     if pile is not None:
         _within(p, "stockpile.bulk_density", pile.bulk_density, BULK_DENSITY, "kg/m3",
@@ -92,7 +89,7 @@ def _within(path: Path, key: str, value: float, bounds: tuple[float, float], uni
         raise SceneError(f"{path}: '{key}' must lie in [{low:g}, {high:g}]{unit} ({why}), got {value:g}")
 
 
-def _check_against_machine(scene: Scene) -> None:
+def _check_against_machine(scene) -> None:
     """Friction within the machine's weight, the wheel's idle power within its drive's rating."""
     facts = _machine_facts(scene.machine.mjcf, _stamp(scene.machine.mjcf), scene.plant.payload)
     if facts is None:

@@ -1,8 +1,8 @@
 """Actions in [-1, 1]^3 to drive forces (N, N m, N m), in one of two modes.
 
 - "force": the drive force itself, normalised by the drive ratings of the plant's MJCF: +1 is
-  the upper rating, -1 the lower one, 0 no force. The paper's machine (`mjcf/bwr.xml`) has no
-  ratings; there `force_scale` (N, N m, N m) must be given, and +-1 is +-force_scale.
+  the upper rating, -1 the lower one, 0 no force; `force_scale` (N, N m, N m), if given,
+  replaces the ratings (+-1 is +-force_scale), and a machine whose MJCF has none needs it.
 - "acceleration": an acceleration added to the reference's, through the controller's belief of
   the machine (`bwr_twin.control.belief`) at the measured state:
 
