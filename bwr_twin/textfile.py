@@ -18,3 +18,13 @@ def decode(data: bytes) -> str:
 def read_text(path: str | Path) -> str:
     """A UTF-8 text file, as `decode` reads it (raises OSError, UnicodeDecodeError)."""
     return decode(Path(path).read_bytes())
+
+
+def version(path: str | Path) -> tuple:
+    """What tells a changed file from the one read before (modification time, size, inode), or ()
+    if it cannot be read: a key for caching what was read from it."""
+    try:
+        stat = Path(path).stat()
+    except OSError:
+        return ()
+    return (stat.st_mtime_ns, stat.st_size, stat.st_ino)

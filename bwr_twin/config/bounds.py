@@ -18,6 +18,7 @@ import functools
 from pathlib import Path
 
 from bwr_twin.errors import ModelError, SceneError
+from bwr_twin.textfile import version
 
 # kg/m^3, of the loose, stockpiled material. CEMA, "Belt Conveyors for Bulk Materials" (7th ed.),
 # ch. 3, the table of material characteristics: bituminous coal 40-60 lb/ft^3 (0.64-0.96 t/m^3),
@@ -91,7 +92,7 @@ def _within(path: Path, key: str, value: float, bounds: tuple[float, float], uni
 
 def _check_against_machine(scene) -> None:
     """Friction within the machine's weight, the wheel's idle power within its drive's rating."""
-    facts = _machine_facts(scene.machine.mjcf, _stamp(scene.machine.mjcf), scene.plant.payload)
+    facts = _machine_facts(scene.machine.mjcf, version(scene.machine.mjcf), scene.plant.payload)
     if facts is None:
         return  # a model that does not compile is named where it is used
     name, weight, reach, boom, wheel_power = facts
@@ -111,14 +112,6 @@ def _check_against_machine(scene) -> None:
     if scene.digging is not None and scene.digging.idle_power > wheel_power:
         raise SceneError(f"{p}: 'digging.idle_power' {scene.digging.idle_power:.3g} W is more than the wheel "
                          f"drive of {name} is rated for ({wheel_power:.3g} W, its 'wheel_power')")
-
-
-def _stamp(path: Path) -> tuple:
-    try:
-        stat = path.stat()
-    except OSError:
-        return ()
-    return (stat.st_mtime_ns, stat.st_size, stat.st_ino)
 
 
 @functools.lru_cache(maxsize=16)

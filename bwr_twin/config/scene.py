@@ -34,7 +34,7 @@ from bwr_twin.config.plugins import (
     rate_control_class,
 )
 from bwr_twin.errors import SceneError
-from bwr_twin.textfile import read_text
+from bwr_twin.textfile import read_text, version
 from bwr_twin.values import is_integer, is_number
 
 Vec3 = tuple[float, float, float]
@@ -268,7 +268,7 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
             "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
     """
     path = Path(path)
-    raw = copy.deepcopy(_read_raw_once(path, _stamp(path)))
+    raw = copy.deepcopy(_read_raw_once(path, version(path)))
     for key, value in (overrides or {}).items():
         if _is_path_key(key):
             value = _resolve_paths(value, Path.cwd())
@@ -278,15 +278,6 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
     scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
     _check_rules(scene)
     return scene
-
-
-def _stamp(path: Path) -> tuple:
-    """What tells a changed file from the one read before."""
-    try:
-        stat = path.stat()
-    except OSError:
-        return ()
-    return (stat.st_mtime_ns, stat.st_size, stat.st_ino)
 
 
 @functools.lru_cache(maxsize=32)
