@@ -35,17 +35,19 @@ class Belief:
 
     def update(self, q: np.ndarray, qd: np.ndarray, ids: np.ndarray | None = None) -> None:
         """Compute M and bias at the (runs, 3) measured state, for the runs `ids` (None: all)."""
-        ids = self._every_run if ids is None else np.asarray(ids, dtype=np.int64)
         dynamics = self._dynamics
-        evaluate(dynamics.mass, dynamics.gravity, q, qd, ids, self.mass_matrix, self.bias)
+        evaluate(dynamics.mass, dynamics.gravity, q, qd, self._ids(ids), self.mass_matrix, self.bias)
 
     def torque_at(self, q: np.ndarray, qd: np.ndarray, u: np.ndarray, ids: np.ndarray | None = None) -> np.ndarray:
         """`update(q, qd, ids)`, then `torque(u)`, in one compiled call."""
-        ids = self._every_run if ids is None else np.asarray(ids, dtype=np.int64)
         out = np.empty(u.shape)
         dynamics = self._dynamics
-        _torque_at(dynamics.mass, dynamics.gravity, q, qd, ids, self.mass_matrix, self.bias, u, out)
+        _torque_at(dynamics.mass, dynamics.gravity, q, qd, self._ids(ids), self.mass_matrix, self.bias, u, out)
         return out
+
+    def _ids(self, ids: np.ndarray | None) -> np.ndarray:
+        """The runs to compute, as the compiled pass takes them (None: all)."""
+        return self._every_run if ids is None else np.asarray(ids, dtype=np.int64)
 
     def torque(self, u: np.ndarray) -> np.ndarray:
         """tau = M u + bias (runs, 3) at the state of the last `update`, for the accelerations u

@@ -80,8 +80,9 @@ class FuzzyModelController(Controller):
 
         `ids` names the runs whose forces matter (None: all); the others get no belief update.
         """
-        _acceleration_command(q_measured, qd_measured, q_desired, qd_desired, qdd_desired, self._scale_e, self._scale_ec, self._output_gain,
-                              self._feedforward, self._surface.kernel, self.fuzzy_output, self.acceleration_command)
+        _acceleration_command(q_measured, qd_measured, q_desired, qd_desired, qdd_desired, self._scale_e,
+                              self._scale_ec, self._output_gain, self._feedforward, self._surface.kernel,
+                              self.fuzzy_output, self.acceleration_command)
         return self.belief.torque_at(q_measured, qd_measured, self.acceleration_command, ids)
 
 
