@@ -86,10 +86,15 @@ def _row(label: str, r: dict) -> str:
     m = r["metrics"]["reclaim"]
     target = m["target_rate_tph"]
     return (f"| {label} | {m['steady_rate_mean_tph']:,.0f} t/h ({100 * (m['steady_rate_mean_tph'] / target - 1):+.1f} %) "
-            f"| {m['steady_rate_cv']:.3f} | {100 * m['steady_within_10pct']:.0f} % | {m['steady_time_s']:.0f} s "
-            f"| {m['landing_error_m']:.3f} m | {m['overcut_max_m']:.2f} m | {m['mass_t']:,.0f} t "
+            f"| {_or_dash(m['steady_rate_cv'], '{:.3f}')} | {_or_dash(m['steady_within_10pct'], '{:.0f} %', 100)} | {m['steady_time_s']:.0f} s "
+            f"| {_or_dash(m['landing_error_m'], '{:.3f} m')} | {m['overcut_max_m']:.2f} m | {m['mass_t']:,.0f} t "
             f"({sum(m['bench_planned_t']):,.0f} t) | {m['rate_mean_tph']:,.0f} t/h | {r['metrics']['run']['duration']:.0f} s "
             f"| {r['seconds']:.0f} s |")
+
+
+def _or_dash(value, form: str, scale: float = 1.0) -> str:
+    """A steady-state figure, or a dash where the run had no steady cutting to measure it on."""
+    return "-" if value is None else form.format(scale * value)
 
 
 def _rate_figure(runs: dict, path: Path) -> None:
