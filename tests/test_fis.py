@@ -679,7 +679,7 @@ def test_cli_refuses_unsafe_outputs(tmp_path):
             ("convert", "tipper.fis", "missing/out.fis"),
             "missing/out.fis: the directory missing does not exist",
         ),
-        (("convert", "tipper.fis", "out.txt"), "out.txt: unknown output suffix '.txt' (known: .fis, .toml)"),
+        (("convert", "tipper.fis", "out.txt"), "out.txt: unknown output suffix '.txt' (known: .fis, .toml, .fcl, .fll)"),
     ]
     with ThreadPoolExecutor(max_workers=2) as pool:
         results = list(pool.map(lambda case: run_cli(*case[0], cwd=tmp_path), cases))

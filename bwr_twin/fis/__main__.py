@@ -4,9 +4,11 @@
     python -m bwr_twin.fis evaluate tests/assets/tipper.fis --input points.csv
     python -m bwr_twin.fis convert scenes/rulebases/paper_table2.toml paper.fis
     python -m bwr_twin.fis convert paper.fis back.toml
+    python -m bwr_twin.fis convert paper.fis paper.fcl    # IEC 61131-7 FCL, read back as well
+    python -m bwr_twin.fis convert paper.fis paper.fll    # fuzzylite's FLL, written only
     python -m bwr_twin.fis surface tests/assets/tipper.fis --out tipper.png
 
-FILE may also be a TOML rule base (by its suffix). Outputs are written atomically and never over
+FILE may also be a TOML rule base or an FCL file (by its suffix). Outputs are written atomically and never over
 the input; an existing OUT is replaced only with --overwrite, and only if bwr_twin.fis wrote it
 (its first line, or a picture's metadata, says so: bwr_twin.results.ownership). A bad file exits
 with status 2 and one line on stderr, 'error: FILE:LINE: what is wrong (the limit)'; nothing is written.
@@ -65,9 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     evaluate.add_argument("--digits", type=int, default=4, help="decimals printed (MATLAB's format short: 4)")
 
-    convert = commands.add_parser("convert", help="convert between .fis and TOML rule base, by the suffixes")
-    convert.add_argument("input", type=Path, help="IN: .fis or .toml")
-    convert.add_argument("output", type=Path, help="OUT: .fis or .toml (not the input; must not exist)")
+    convert = commands.add_parser("convert", help="convert between .fis, FCL and TOML rule base, or to FLL, by the suffixes")
+    convert.add_argument("input", type=Path, help="IN: .fis, .fcl or .toml")
+    convert.add_argument("output", type=Path, help="OUT: .fis, .fcl, .fll or .toml (not the input; must not exist)")
     convert.add_argument("--overwrite", action="store_true", help="replace OUT if bwr_twin.fis wrote it")
 
     surface = commands.add_parser("surface", help="plot the control surface and the membership functions")
@@ -284,10 +286,10 @@ def _duration(seconds: float) -> str:
 
 def _convert(source: Path, out: Path, overwrite: bool) -> None:
     from bwr_twin.control.rulebase import RuleBase
-    from bwr_twin.fis.convert import SUFFIXES, fis_to_rulebase, load_system, output_text
+    from bwr_twin.fis.convert import OUTPUT_SUFFIXES, fis_to_rulebase, load_system, output_text
 
-    if out.suffix.lower() not in SUFFIXES:
-        raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(SUFFIXES)})")
+    if out.suffix.lower() not in OUTPUT_SUFFIXES:
+        raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(OUTPUT_SUFFIXES)})")
     _check_destination(source, out, overwrite)
     system = load_system(source)
     text = f"{text_mark(WRITER, out.suffix)}\n{output_text(system, out, str(source))}"

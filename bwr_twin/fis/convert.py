@@ -21,12 +21,15 @@ from pathlib import Path
 
 from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.errors import SceneError
+from bwr_twin.fis.fcl import fcl_text, read_fcl
+from bwr_twin.fis.fll import fll_text
 from bwr_twin.fis.reader import read_fis
 from bwr_twin.fis.system import AND, FuzzySystem, MembershipFunction, Rule, Variable, check
 from bwr_twin.fis.writer import fis_text, format_number
 from bwr_twin.textfile import read_text
 
-SUFFIXES = (".fis", ".toml")
+SUFFIXES = (".fis", ".toml", ".fcl")  # what convert reads
+OUTPUT_SUFFIXES = SUFFIXES + (".fll",)  # and writes: FLL for fuzzylite (bwr_twin.fis.fll)
 INPUT_NAMES = ("e", "ec")
 OUTPUT_NAME = "u"  # bwr_twin.control.fuzzy names the output u
 _DEFAULT_POINTS = (601, 181)  # RuleBase's input_points, output_points
@@ -232,11 +235,13 @@ def load_rule_base(path: str | Path) -> RuleBase:
 
 
 def load_system(path: str | Path) -> FuzzySystem:
-    """A .fis file, or a TOML rule base converted to a FuzzySystem (by the suffix)."""
+    """A .fis or .fcl file, or a TOML rule base converted to a FuzzySystem (by the suffix)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".fis":
         return read_fis(path)
+    if suffix == ".fcl":
+        return read_fcl(path)
     if suffix == ".toml":
         rule_base = _toml_rule_base(path)
         return rulebase_to_fis(rule_base, name=path.stem)
@@ -252,8 +257,14 @@ def _toml_rule_base(path: Path) -> RuleBase:
 
 
 def output_text(system: FuzzySystem, out: Path, source: str) -> str:
-    """What `convert` writes to `out`: .fis text or a TOML rule base (refusing what it cannot hold)."""
+    """What `convert` writes to `out`: .fis, FCL or FLL text, or a TOML rule base (refusing what it
+    cannot hold)."""
     suffix = out.suffix.lower()
+    converted = f"Converted by `python -m bwr_twin.fis convert` from {source}."
+    if suffix == ".fcl":
+        return fcl_text(system, [converted])
+    if suffix == ".fll":
+        return fll_text(system, [converted])
     if suffix == ".fis":
         comments = [f"Converted by `python -m bwr_twin.fis convert` from {source}."]
         if Path(source).suffix.lower() == ".toml":
@@ -265,7 +276,7 @@ def output_text(system: FuzzySystem, out: Path, source: str) -> str:
         return fis_text(system, comments)
     if suffix == ".toml":
         return rulebase_toml(fis_to_rulebase(system), source, system)
-    raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(SUFFIXES)})")
+    raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(OUTPUT_SUFFIXES)})")
 
 
 def _toml_float(value: float) -> str:

@@ -2,8 +2,8 @@
 
 Every directory the twin writes (a run, a batch) holds a marker file, `.bwr_twin`, saying what
 it is. Every file it writes carries its writer's mark in one fixed place and form, which a file
-the twin did not write does not hold by chance (`written_by`): the first line of a .fis or .toml
-is exactly `% written by WRITER` or `# written by WRITER`; a PNG has a text chunk `Software`
+the twin did not write does not hold by chance (`written_by`): the first line of a .fis, .toml or
+.fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER *)`; a PNG has a text chunk `Software`
 of exactly WRITER; an SVG's leading metadata has WRITER as its creator, a PDF's document
 information as its Creator; an HTML export's <head> opens with the generator tag. Text that
 merely mentions the writer anywhere else does not count. `check_output` is asked before any work
@@ -28,13 +28,14 @@ BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
 HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an HTML file's <head>
 HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
 _HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
-COMMENT_SIGNS = {".fis": "%", ".toml": "#"}  # the text files the twin writes, by suffix
+COMMENT_SIGNS = {".fis": "%", ".toml": "#", ".fll": "#", ".fcl": "(*"}  # the text files the twin writes, by suffix
+_COMMENT_ENDS = {".fcl": " *)"}  # where a comment must be closed on its line
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def text_mark(writer: str, suffix: str) -> str:
     """The first line of a text file `writer` writes, without its line end."""
-    return f"{COMMENT_SIGNS[suffix.lower()]} written by {writer}"
+    return f"{COMMENT_SIGNS[suffix.lower()]} written by {writer}{_COMMENT_ENDS.get(suffix.lower(), '')}"
 
 
 def picture_metadata(writer: str, suffix: str) -> dict[str, str]:
