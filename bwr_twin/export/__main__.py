@@ -1,0 +1,42 @@
+"""Export a scene's controller for the engineer's tools.
+
+    python -m bwr_twin.export plc pid_paper --out plc/pid_paper
+
+Writes the controller as IEC 61131-3 Structured Text into DIR (bwr_twin.export.plc). DIR must not
+exist, or be an export the twin wrote and --overwrite be given; a bad scene exits with status 2 and
+one line on stderr, and nothing is written.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from bwr_twin.arguments import CommandParser
+from bwr_twin.errors import exit_status
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="python -m bwr_twin.export", description=__doc__.split("\n\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+    plc = commands.add_parser("plc", help="the controller as IEC 61131-3 Structured Text")
+    plc.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
+    plc.add_argument("--out", required=True, type=Path, help="output directory (must not exist)")
+    plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
+    args = parser.parse_args(argv)
+    return exit_status(lambda: _plc(args))
+
+
+def _plc(args) -> int:
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.export.plc import export_plc
+    from bwr_twin.shipped import find_scene
+
+    scene = load_scene(find_scene(args.scene))
+    for path in export_plc(scene, args.out, overwrite=args.overwrite):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""Structured Text, parsed by blark (an independent IEC 61131-3 parser), turned into Python.
+
+The tests run the exported function blocks with it: blark's tree of a FUNCTION_BLOCK becomes the
+source of a Python class whose `__call__` runs the block's body once, its VAR and VAR_OUTPUT kept
+between calls as a PLC keeps them. Only what the exporter writes is translated (LREAL and DINT
+scalars and 0-based arrays, :=, FOR, IF/ELSIF/ELSE, arithmetic, comparisons, AND/OR/NOT, MIN, MAX,
+LIMIT, COS, SIN, ABS, SQRT, TRUNC); anything else raises NotImplementedError naming the node.
+Python floats are IEEE doubles, as LREAL: each operation rounds as a PLC's does.
+"""
+
+from __future__ import annotations
+
+import math
+
+from blark import parse_source_code
+from blark import transform as tf
+
+_BINARY = {"+": "+", "-": "-", "*": "*", "/": "/", "<": "<", ">": ">", "<=": "<=", ">=": ">=", "=": "==",
+           "<>": "!=", "AND": "and", "OR": "or"}
+_FUNCTIONS = {"MIN": "min", "MAX": "max", "COS": "_math.cos", "SIN": "_math.sin", "ABS": "abs",
+              "SQRT": "_math.sqrt", "TRUNC": "_trunc", "DINT_TO_LREAL": "float", "LIMIT": "_limit"}
+
+
+def load_block(text: str):
+    """The first FUNCTION_BLOCK of the ST `text` as a Python class (instances keep their state)."""
+    parsed = parse_source_code(text)
+    if parsed.exception is not None:
+        raise parsed.exception
+    source = parsed.transform()
+    block = next(item for item in source.items if isinstance(item, tf.FunctionBlock))
+    return _Translator(block).build()
+
+
+class _Translator:
+    def __init__(self, block):
+        self.block = block
+        self.inputs: list[str] = []
+        self.state: list[str] = []  # outputs and locals: attributes of the instance
+        self.init: list[str] = []
+
+    def build(self):
+        for declarations in self.block.declarations:
+            for item in declarations.items:
+                names = [str(v.variable.name) for v in item.variables]
+                value = self.initial(item.init)
+                for name in names:
+                    if isinstance(declarations, tf.InputDeclarations):
+                        self.inputs.append(name)
+                    self.state.append(name)
+                    self.init.append(f"        self.{name} = {value}")
+        lines = ["class Block:", "    def __init__(self):"] + (self.init or ["        pass"])
+        lines += ["    def __call__(self, " + ", ".join(self.inputs) + "):"]
+        lines += [f"        self.{name} = {name}" for name in self.inputs]
+        lines += self.statements(self.block.body, 2) or ["        pass"]
+        namespace = {"_math": math, "_trunc": lambda x: int(x), "_limit": lambda mn, x, mx: min(max(x, mn), mx)}
+        exec(compile("\n".join(lines), f"<{self.block.name}>", "exec"), namespace)
+        return namespace["Block"]
+
+    def initial(self, init) -> str:
+        if isinstance(init, tf.ArrayTypeInitialization):
+            (subrange,) = init.spec.subranges
+            length = int(str(subrange.stop.value)) - int(str(subrange.start.value)) + 1
+            if init.value is None:
+                return f"[0.0] * {length}"
+            return "[" + ", ".join(self.expression(e) for e in _flat(init.value)) + "]"
+        if isinstance(init, tf.TypeInitialization):
+            if init.value is not None:
+                return self.expression(init.value)
+            return "0" if str(init.spec.type) == "DINT" else "0.0"
+        raise NotImplementedError(type(init).__name__)
+
+    def statements(self, statement_list, depth: int) -> list[str]:
+        pad = "    " * depth
+        out = []
+        for statement in statement_list.statements if statement_list is not None else ():
+            if isinstance(statement, tf.AssignmentStatement):
+                (target,) = statement.variables
+                out.append(f"{pad}{self.expression(target)} = {self.expression(statement.expression)}")
+            elif isinstance(statement, tf.ForStatement):
+                control = self.expression(statement.control)
+                step = self.expression(statement.step) if statement.step is not None else "1"
+                out.append(f"{pad}for {control} in range({self.expression(statement.from_)}, "
+                           f"{self.expression(statement.to)} + 1, {step}):")
+                out += self.statements(statement.statements, depth + 1) or [f"{pad}    pass"]
+            elif isinstance(statement, tf.IfStatement):
+                out.append(f"{pad}if {self.expression(statement.if_expression)}:")
+                out += self.statements(statement.statements, depth + 1) or [f"{pad}    pass"]
+                for clause in statement.else_ifs:
+                    out.append(f"{pad}elif {self.expression(clause.if_expression)}:")
+                    out += self.statements(clause.statements, depth + 1) or [f"{pad}    pass"]
+                if statement.else_clause is not None:
+                    out.append(f"{pad}else:")
+                    out += self.statements(statement.else_clause.statements, depth + 1) or [f"{pad}    pass"]
+            else:
+                raise NotImplementedError(type(statement).__name__)
+        return out
+
+    def expression(self, node) -> str:
+        if isinstance(node, tf.Real):
+            return repr(float(str(node.value)))
+        if isinstance(node, tf.Integer):
+            return str(int(str(node.value)))
+        if isinstance(node, tf.SimpleVariable):
+            return f"self.{node.name}"
+        if isinstance(node, tf.MultiElementVariable):
+            (subscripts,) = node.elements
+            index = "][".join(self.expression(s) for s in subscripts.subscripts)
+            return f"{self.expression(node.name)}[{index}]"
+        if isinstance(node, tf.ParenthesizedExpression):
+            return f"({self.expression(node.expr)})"
+        if isinstance(node, tf.UnaryOperation):
+            op = "not " if str(node.op).upper() == "NOT" else str(node.op)
+            return f"({op}{self.expression(node.expr)})"
+        if isinstance(node, tf.BinaryOperation):
+            return f"({self.expression(node.left)} {_BINARY[str(node.op).upper()]} {self.expression(node.right)})"
+        if isinstance(node, tf.FunctionCall):
+            name = _FUNCTIONS[str(node.name.name).upper()]
+            return f"{name}(" + ", ".join(self.expression(p.value) for p in node.parameters) + ")"
+        raise NotImplementedError(type(node).__name__)
+
+
+def _flat(initialization) -> list:
+    """blark nests an initialiser's later elements: [a, b, c] is a, then [b, c] without brackets."""
+    out = []
+    for element in initialization.elements:
+        inner = element.element
+        out += _flat(inner) if isinstance(inner, tf.ArrayInitialization) else [inner]
+    return out

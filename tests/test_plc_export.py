@@ -1,0 +1,64 @@
+"""The PLC export: `python -m bwr_twin.export plc` writes Structured Text that an independent
+parser (blark) reads, and that, run period by period on the inputs a real run recorded, gives the
+drive forces the twin's own controller gave."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import SCENES
+from st_python import load_block
+
+from bwr_twin.config.scene import load_scene
+from bwr_twin.sim.lockstep import simulate
+
+
+def export(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "bwr_twin.export", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def pid_run():
+    """pid_paper's 700 s, recorded every control period (70,000 periods)."""
+    scene = load_scene(SCENES / "pid_paper.toml", {"simulation.record_period": 0.01})
+    return simulate(scene)
+
+
+def test_exported_pid_gives_the_twins_forces(tmp_path, pid_run):
+    result = export("plc", "pid_paper", "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    block = load_block((tmp_path / "plc" / "FB_BwrPid.st").read_text())()
+    r = pid_run
+    assert len(r.time) == 70_001
+    forces = np.empty_like(r.drive_force_command)
+    for k in range(len(r.time)):
+        block(list(r.q_measured[k]), list(r.qd_measured[k]), list(r.q_desired[k]), list(r.qd_desired[k]))
+        forces[k] = block.force
+    scale = np.maximum(np.abs(r.drive_force_command), 1e-300)
+    assert np.max(np.abs(forces - r.drive_force_command) / scale) <= 1e-9
+    assert (np.ptp(forces, axis=0) > 100.0).all()  # every drive's force moved (N, N m): no constant matches by chance
+    readme = (tmp_path / "plc" / "README.md").read_text()
+    assert "0.01 s" in readme and "N m" in readme
+
+
+def test_what_cannot_be_exported_is_refused_in_one_line(tmp_path):
+    result = export("plc", "paper_individual_gains", "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert "paper_individual_gains.toml" in result.stderr and "'fuzzy_model'" in result.stderr
+    assert not (tmp_path / "plc").exists()
+
+
+def test_an_export_replaces_only_its_own_folder(tmp_path):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.st").write_text("my own code")
+    result = export("plc", "pid_paper", "--out", mine, "--overwrite", cwd=tmp_path)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert (mine / "notes.st").read_text() == "my own code"
+    assert export("plc", "pid_paper", "--out", tmp_path / "ours", cwd=tmp_path).returncode == 0
+    again = export("plc", "pid_paper", "--out", tmp_path / "ours", "--overwrite", cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
