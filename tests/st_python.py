@@ -3,7 +3,7 @@
 The tests run the exported function blocks with it: blark's tree of a FUNCTION_BLOCK becomes the
 source of a Python class whose `__call__` runs the block's body once, its VAR and VAR_OUTPUT kept
 between calls as a PLC keeps them. Only what the exporter writes is translated (LREAL and DINT
-scalars and 0-based arrays, :=, FOR, IF/ELSIF/ELSE, arithmetic, comparisons, AND/OR/NOT, MIN, MAX,
+scalars and 0-based arrays of any rank, global constants, :=, FOR, IF/ELSIF/ELSE, arithmetic, comparisons, AND/OR/NOT, MIN, MAX,
 LIMIT, COS, SIN, ABS, SQRT, TRUNC); anything else raises NotImplementedError naming the node.
 Python floats are IEEE doubles, as LREAL: each operation rounds as a PLC's does.
 """
@@ -11,6 +11,9 @@ Python floats are IEEE doubles, as LREAL: each operation rounds as a PLC's does.
 from __future__ import annotations
 
 import math
+import re
+
+import numpy as np
 
 from blark import parse_source_code
 from blark import transform as tf
@@ -21,19 +24,41 @@ _FUNCTIONS = {"MIN": "min", "MAX": "max", "COS": "_math.cos", "SIN": "_math.sin"
               "SQRT": "_math.sqrt", "TRUNC": "_trunc", "DINT_TO_LREAL": "float", "LIMIT": "_limit"}
 
 
-def load_block(text: str):
-    """The first FUNCTION_BLOCK of the ST `text` as a Python class (instances keep their state)."""
+def load_block(text: str, global_constants: dict | None = None):
+    """The first FUNCTION_BLOCK of the ST `text` as a Python class (instances keep their state);
+    names it does not declare are looked up in `global_constants` (`read_global_constants`)."""
     parsed = parse_source_code(text)
     if parsed.exception is not None:
         raise parsed.exception
     source = parsed.transform()
     block = next(item for item in source.items if isinstance(item, tf.FunctionBlock))
-    return _Translator(block).build()
+    return _Translator(block, global_constants or {}).build()
+
+
+_GLOBAL = re.compile(r"^\s*(\w+)\s*:\s*ARRAY\[([^\]]*)\]\s*OF\s+LREAL\s*:=\s*\[([^\]]*)\];", re.MULTILINE)
+
+
+def read_global_constants(text: str) -> dict:
+    """The LREAL arrays of a VAR_GLOBAL CONSTANT file, as nested lists of floats.
+
+    blark's Earley grammar is ambiguous on a bare list of array elements, and its parse time grows
+    with the cube of the list (200 numbers take a minute): the numbers of these long initialisers
+    are read here, each literal by Python's float(), the logic that uses them by blark.
+    """
+    assert "VAR_GLOBAL CONSTANT" in text and text.rstrip().endswith("END_VAR")
+    constants = {}
+    for name, ranges, values in _GLOBAL.findall(text):
+        shape = [int(stop) - int(start) + 1 for start, stop in (r.split("..") for r in ranges.split(","))]
+        flat = np.array([float(v) for v in values.split(",")])
+        constants[name] = flat.reshape(shape).tolist()
+    return constants
 
 
 class _Translator:
-    def __init__(self, block):
+    def __init__(self, block, global_constants: dict):
         self.block = block
+        self.global_constants = global_constants
+        self.declared: set[str] = set()
         self.inputs: list[str] = []
         self.state: list[str] = []  # outputs and locals: attributes of the instance
         self.init: list[str] = []
@@ -42,6 +67,7 @@ class _Translator:
         for declarations in self.block.declarations:
             for item in declarations.items:
                 names = [str(v.variable.name) for v in item.variables]
+                self.declared.update(names)
                 value = self.initial(item.init)
                 for name in names:
                     if isinstance(declarations, tf.InputDeclarations):
@@ -52,16 +78,22 @@ class _Translator:
         lines += ["    def __call__(self, " + ", ".join(self.inputs) + "):"]
         lines += [f"        self.{name} = {name}" for name in self.inputs]
         lines += self.statements(self.block.body, 2) or ["        pass"]
-        namespace = {"_math": math, "_trunc": lambda x: int(x), "_limit": lambda mn, x, mx: min(max(x, mn), mx)}
+        namespace = {"_math": math, "_trunc": lambda x: int(x), "_limit": lambda mn, x, mx: min(max(x, mn), mx),
+                     "_G": self.global_constants}
         exec(compile("\n".join(lines), f"<{self.block.name}>", "exec"), namespace)
         return namespace["Block"]
 
     def initial(self, init) -> str:
         if isinstance(init, tf.ArrayTypeInitialization):
-            (subrange,) = init.spec.subranges
-            length = int(str(subrange.stop.value)) - int(str(subrange.start.value)) + 1
+            lengths = [int(str(r.stop.value)) - int(str(r.start.value)) + 1 for r in init.spec.subranges]
+            zero = "0" if str(init.spec.type.type_name) == "DINT" else "0.0"
             if init.value is None:
-                return f"[0.0] * {length}"
+                nested = f"[{zero}] * {lengths[-1]}"
+                for length in reversed(lengths[:-1]):
+                    nested = f"[{nested} for _ in range({length})]"
+                return nested
+            if len(lengths) != 1:
+                raise NotImplementedError("an initialised array of more than one dimension")
             return "[" + ", ".join(self.expression(e) for e in _flat(init.value)) + "]"
         if isinstance(init, tf.TypeInitialization):
             if init.value is not None:
@@ -101,6 +133,10 @@ class _Translator:
         if isinstance(node, tf.Integer):
             return str(int(str(node.value)))
         if isinstance(node, tf.SimpleVariable):
+            if str(node.name) not in self.declared:
+                if str(node.name) not in self.global_constants:
+                    raise NameError(f"{node.name} is neither declared nor a global constant")
+                return f"_G[{str(node.name)!r}]"
             return f"self.{node.name}"
         if isinstance(node, tf.MultiElementVariable):
             (subscripts,) = node.elements

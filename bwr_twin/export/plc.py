@@ -1,11 +1,12 @@
 """A scene's controller as IEC 61131-3 Structured Text, in a folder the twin marks as its own.
 
-    DIR/FB_BwrPid.st   the function block, its gains and drive ratings as VAR CONSTANT
-    DIR/README.md      inputs, outputs, units, the cycle time, how to wire the block
+    DIR/FB_BwrPid.st or FB_BwrComputedTorque.st   the function block, its gains as VAR CONSTANT
+    DIR/GVL_BwrMachine.st   the believed machine's M(q) and gravity in closed form (model-based blocks)
+    DIR/README.md           inputs, outputs, units, the cycle time, how to wire the block
 
 The block's arithmetic is the twin's own, operation for operation, so that the LREAL block gives
-the forces the twin's controller gives (tests/test_plc_export.py runs it on a recorded run). Of
-the shipped controllers the PID is exported so far; another type is refused in one line.
+the forces the twin's controller gives (tests/test_plc_export.py runs it on recorded runs). The PID
+and computed torque are exported so far; another type is refused in one line.
 """
 
 from __future__ import annotations
@@ -14,53 +15,82 @@ from pathlib import Path
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
-from bwr_twin.export.structured_text import pid_block
+from bwr_twin.export.structured_text import computed_torque_block, machine_globals, pid_block
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.rundir import staged_directory
 
-EXPORTABLE = ("pid",)
 PID_BLOCK = "FB_BwrPid"
+COMPUTED_TORQUE_BLOCK = "FB_BwrComputedTorque"
+MACHINE_GLOBALS = "GVL_BwrMachine"
 
 
 def export_plc(scene: Scene, out: Path, *, overwrite: bool = False) -> list[Path]:
     """Write the scene's controller into `out` (replaced only if the twin wrote it, with
     `overwrite`); the files written, as they are named in `out`."""
-    if scene.controller.type not in EXPORTABLE:
+    writers = {"pid": _pid, "computed_torque": _computed_torque}
+    if scene.controller.type not in writers:
         raise SceneError(f"{scene.path}: [controller] type {scene.controller.type!r} cannot be exported as PLC "
-                         f"code yet (exported: {', '.join(EXPORTABLE)})")
-    settings = scene.controller.settings
-    limits = Machine(scene.controller_mjcf).drive_limits  # the ratings the twin's PID clips to
-    period = scene.simulation.control_period
-    text = pid_block(PID_BLOCK, settings.kp, settings.ki, settings.kd, settings.holding_force, limits[:, 0],
-                     limits[:, 1], period, scene.path.name)
-    files = {f"{PID_BLOCK}.st": text, "README.md": _readme(scene, period)}
+                         f"code yet (exported: {', '.join(writers)})")
+    block, files = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
+    files["README.md"] = _readme(scene, block, scene.simulation.control_period)
     with staged_directory(out, overwrite=overwrite, kind="plc") as staging:
         for name, content in files.items():
             (staging / name).write_text(content, encoding="utf-8")
     return [out / name for name in files]
 
 
-def _readme(scene: Scene, period: float) -> str:
-    return f"""# {PID_BLOCK}: the PID of {scene.path.name}, as IEC 61131-3 Structured Text
+def _pid(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
+    settings, limits = scene.controller.settings, believed.drive_limits  # the ratings the twin's PID clips to
+    text = pid_block(PID_BLOCK, settings.kp, settings.ki, settings.kd, settings.holding_force, limits[:, 0],
+                     limits[:, 1], scene.simulation.control_period, scene.path.name)
+    return PID_BLOCK, {f"{PID_BLOCK}.st": text}
 
-Written by `python -m bwr_twin.export plc {scene.path.stem}`. One FUNCTION_BLOCK, LREAL (64-bit)
-throughout: the same arithmetic, in the same order, as the twin's controller (bwr_twin.control.pid).
 
-Call it once every control period, {period:g} s (its constant DT): a cycle time other than DT
-changes the integral's scale.
+def _computed_torque(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
+    settings = scene.controller.settings
+    dynamics = believed.dynamics  # a machine outside the contract's closed form is refused here
+    return COMPUTED_TORQUE_BLOCK, {
+        f"{COMPUTED_TORQUE_BLOCK}.st": computed_torque_block(COMPUTED_TORQUE_BLOCK, settings.kp, settings.kd,
+                                                             scene.path.name),
+        f"{MACHINE_GLOBALS}.st": machine_globals(dynamics.mass, dynamics.gravity, believed.path.name),
+    }
+
+
+_DESCRIPTIONS = {
+    PID_BLOCK: ("the per-axis PID", "bwr_twin.control.pid",
+                "Call it once every control period, {period:g} s (its constant DT): a cycle time other than DT "
+                "changes the integral's scale. The gains (KP, KI, KD), the holding force F0 and the drive ratings "
+                "(LOW, HIGH) are the scene's, as VAR CONSTANT; a drive without a rating is limited at the largest "
+                "LREAL. The integral stops growing while an axis is saturated with its error pushing further."),
+    COMPUTED_TORQUE_BLOCK: ("the computed-torque PD", "bwr_twin.control.computed_torque",
+                            "It holds no state; the twin calls it every {period:g} s. KP (1/s^2) and KD (1/s) are "
+                            "the scene's, as VAR CONSTANT; M(q) and the bias forces come from GVL_BwrMachine.st, "
+                            "the believed machine's closed form: add that global variable list to the project "
+                            "with the block. The block does not clip: the drives' own limits do."),
+}
+
+
+def _readme(scene: Scene, block: str, period: float) -> str:
+    what, module, notes = _DESCRIPTIONS[block]
+    inputs = [("q[0..2]", "m, rad, rad", "the travel, slew and luff encoders"),
+              ("qd[0..2]", "m/s, rad/s, rad/s", "their velocities"),
+              ("q_ref[0..2]", "m, rad, rad", "the path's reference position"),
+              ("qd_ref[0..2]", "m/s, rad/s, rad/s", "the reference velocity")]
+    if block == COMPUTED_TORQUE_BLOCK:
+        inputs.append(("qdd_ref[0..2]", "m/s^2, rad/s^2, rad/s^2", "the reference acceleration"))
+    rows = "\n".join(f"| `{name}` | {units} | {wire} |" for name, units, wire in inputs)
+    return f"""# {block}: {what} of {scene.path.name}, as IEC 61131-3 Structured Text
+
+Written by `python -m bwr_twin.export plc {scene.path.stem}`. LREAL (64-bit) throughout: the same
+arithmetic, in the same order, as the twin's controller ({module}). Axis 0 is travel, 1 slew, 2 luff.
 
 | input | units | wire it to |
 | --- | --- | --- |
-| `q[0..2]` | m, rad, rad | the travel, slew and luff encoders |
-| `qd[0..2]` | m/s, rad/s, rad/s | their velocities |
-| `q_ref[0..2]` | m, rad, rad | the path's reference position |
-| `qd_ref[0..2]` | m/s, rad/s, rad/s | the reference velocity |
+{rows}
 
 | output | units | wire it to |
 | --- | --- | --- |
 | `force[0..2]` | N, N m, N m | the travel, slew and luff drives' force or torque setpoints |
 
-The gains (KP, KI, KD), the holding force F0 and the drive ratings (LOW, HIGH) are the scene's, as
-VAR CONSTANT; a drive without a rating is limited at the largest LREAL. Axis 0 is travel, 1 slew,
-2 luff. The integral stops growing while an axis is saturated with its error pushing further.
+{notes.format(period=period)}
 """

@@ -78,3 +78,137 @@ def pid_block(name: str, kp, ki, kd, holding, low, high, period: float, source: 
         "END_FOR",
         "END_FUNCTION_BLOCK",
     ]) + "\n"
+
+
+def matrix_constant(name: str, values: np.ndarray, comment: str) -> str:
+    """A 2-D VAR CONSTANT: ARRAY[0..r-1, 0..c-1] OF LREAL, row by row."""
+    rows, columns = values.shape
+    return (f"    {name} : ARRAY[0..{rows - 1}, 0..{columns - 1}] OF LREAL := "
+            f"{lreal_array(values.ravel())};  (* {comment} *)")
+
+
+def machine_globals(mass: np.ndarray, gravity: np.ndarray, source: str) -> str:
+    """GVL_BwrMachine: the believed machine's closed-form coefficients (bwr_twin.model.dynamics)."""
+    return "\n".join([
+        "VAR_GLOBAL CONSTANT",
+        f"    (* M(q) and the gravity forces of {source} in closed form: every entry is a fixed",
+        "       combination of the 15 functions {1, cos slew, sin slew} x {1, cos luff, sin luff,",
+        "       cos 2 luff, sin 2 luff}, numbered 5 a + b; identified from the MJCF by the twin and checked",
+        "       against MuJoCo. Rows of MASS_COEFFICIENTS: M00, M01, M02, M11, M12, M22. *)",
+        matrix_constant("MASS_COEFFICIENTS", mass, "kg, kg m, kg m^2"),
+        matrix_constant("GRAVITY_COEFFICIENTS", gravity, "N, N m, N m"),
+        "END_VAR",
+    ]) + "\n"
+
+
+# M(q) and bias(q, qd) at the measured state, as bwr_twin.model.dynamics.evaluate computes them:
+# the same sums in the same order, so the LREAL result is the twin's to the last bit.
+_DYNAMICS_VARIABLES = [
+    "    basis : ARRAY[0..14] OF LREAL;",
+    "    d_slew : ARRAY[0..14] OF LREAL;  (* d basis / d slew *)",
+    "    d_luff : ARRAY[0..14] OF LREAL;",
+    "    outer : ARRAY[0..2] OF LREAL;",
+    "    outer_d : ARRAY[0..2] OF LREAL;",
+    "    inner : ARRAY[0..4] OF LREAL;",
+    "    inner_d : ARRAY[0..4] OF LREAL;",
+    "    mass : ARRAY[0..2, 0..2] OF LREAL;  (* M(q): kg, kg m, kg m^2 *)",
+    "    slope : ARRAY[0..2, 0..2, 0..2] OF LREAL;  (* slope[k, i, j] = dM_ij / dq_k *)",
+    "    bias : ARRAY[0..2] OF LREAL;  (* Coriolis, centrifugal and gravity forces: N, N m, N m *)",
+    "    entry : LREAL;",
+    "    slope_slew : LREAL;",
+    "    slope_luff : LREAL;",
+    "    sum : LREAL;",
+    "    a : DINT;",
+    "    b : DINT;",
+    "    n : DINT;",
+    "    row : DINT;",
+    "    col : DINT;",
+    "    k : DINT;",
+    "    i : DINT;",
+    "    j : DINT;",
+]
+_ENTRY_ROWS = (0, 0, 0, 1, 1, 2)  # M's upper entries, as the coefficients' rows hold them
+_ENTRY_COLUMNS = (0, 1, 2, 1, 2, 2)
+_DYNAMICS_STATEMENTS = [
+    "(* M(q) and bias(q, qd) at the measured state *)",
+    "outer[0] := 1.0; outer[1] := COS(q[1]); outer[2] := SIN(q[1]);",
+    "outer_d[0] := 0.0; outer_d[1] := -outer[2]; outer_d[2] := outer[1];",
+    "inner[0] := 1.0; inner[1] := COS(q[2]); inner[2] := SIN(q[2]); inner[3] := COS(2.0 * q[2]); "
+    "inner[4] := SIN(2.0 * q[2]);",
+    "inner_d[0] := 0.0; inner_d[1] := -inner[2]; inner_d[2] := inner[1]; inner_d[3] := -2.0 * inner[4]; "
+    "inner_d[4] := 2.0 * inner[3];",
+    "FOR a := 0 TO 2 DO",
+    "    FOR b := 0 TO 4 DO",
+    "        basis[5 * a + b] := outer[a] * inner[b];",
+    "        d_slew[5 * a + b] := outer_d[a] * inner[b];",
+    "        d_luff[5 * a + b] := outer[a] * inner_d[b];",
+    "    END_FOR",
+    "END_FOR",
+    "FOR k := 0 TO 5 DO",
+    "    entry := 0.0; slope_slew := 0.0; slope_luff := 0.0;",
+    "    FOR n := 0 TO 14 DO",
+    "        entry := entry + MASS_COEFFICIENTS[k, n] * basis[n];",
+    "        slope_slew := slope_slew + MASS_COEFFICIENTS[k, n] * d_slew[n];",
+    "        slope_luff := slope_luff + MASS_COEFFICIENTS[k, n] * d_luff[n];",
+    "    END_FOR",
+    "    row := ENTRY_ROW[k]; col := ENTRY_COLUMN[k];",
+    "    mass[row, col] := entry; mass[col, row] := entry;",
+    "    slope[1, row, col] := slope_slew; slope[1, col, row] := slope_slew;",
+    "    slope[2, row, col] := slope_luff; slope[2, col, row] := slope_luff;",
+    "END_FOR",
+    "FOR i := 0 TO 2 DO",
+    "    sum := 0.0;",
+    "    FOR n := 0 TO 14 DO",
+    "        sum := sum + GRAVITY_COEFFICIENTS[i, n] * basis[n];",
+    "    END_FOR",
+    "    FOR j := 0 TO 2 DO",
+    "        FOR k := 0 TO 2 DO",
+    "            sum := sum + (slope[k, i, j] - 0.5 * slope[i, j, k]) * qd[j] * qd[k];",
+    "        END_FOR",
+    "    END_FOR",
+    "    bias[i] := sum;",
+    "END_FOR",
+]
+
+
+def computed_torque_block(name: str, kp, kd, source: str) -> str:
+    """The twin's computed-torque PD (bwr_twin.control.computed_torque) as a FUNCTION_BLOCK."""
+    return "\n".join([
+        f"FUNCTION_BLOCK {name}",
+        f"(* The computed-torque PD of {source}, exported by python -m bwr_twin.export plc.",
+        "   force = M(q) u + bias(q, qd), u = qdd_ref + KP (q_ref - q) + KD (qd_ref - qd), with M and bias",
+        "   of the believed machine in closed form (GVL_BwrMachine). No state: call it every control period. *)",
+        "VAR_INPUT",
+        f"    q : ARRAY[0..2] OF LREAL;        (* measured position: m, rad, rad *) {AXES_COMMENT}",
+        "    qd : ARRAY[0..2] OF LREAL;       (* measured velocity: m/s, rad/s, rad/s *)",
+        "    q_ref : ARRAY[0..2] OF LREAL;    (* reference position: m, rad, rad *)",
+        "    qd_ref : ARRAY[0..2] OF LREAL;   (* reference velocity: m/s, rad/s, rad/s *)",
+        "    qdd_ref : ARRAY[0..2] OF LREAL;  (* reference acceleration: m/s^2, rad/s^2, rad/s^2 *)",
+        "END_VAR",
+        "VAR_OUTPUT",
+        "    force : ARRAY[0..2] OF LREAL;    (* drive force command: N, N m, N m *)",
+        "    u : ARRAY[0..2] OF LREAL;        (* acceleration command: m/s^2, rad/s^2, rad/s^2 *)",
+        "END_VAR",
+        "VAR",
+        *_DYNAMICS_VARIABLES,
+        "    inertial : LREAL;",
+        "END_VAR",
+        "VAR CONSTANT",
+        constant("KP", kp, "1/s^2"),
+        constant("KD", kd, "1/s"),
+        f"    ENTRY_ROW : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_ROWS))}];",
+        f"    ENTRY_COLUMN : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_COLUMNS))}];",
+        "END_VAR",
+        *_DYNAMICS_STATEMENTS,
+        "FOR i := 0 TO 2 DO",
+        "    u[i] := qdd_ref[i] + (KP[i] * (q_ref[i] - q[i]) + KD[i] * (qd_ref[i] - qd[i]));",
+        "END_FOR",
+        "FOR i := 0 TO 2 DO",
+        "    inertial := 0.0;",
+        "    FOR j := 0 TO 2 DO",
+        "        inertial := inertial + mass[i, j] * u[j];",
+        "    END_FOR",
+        "    force[i] := inertial + bias[i];",
+        "END_FOR",
+        "END_FUNCTION_BLOCK",
+    ]) + "\n"
