@@ -38,8 +38,12 @@ def load_block(text: str, global_constants: dict | None = None):
 _GLOBAL = re.compile(r"^\s*(\w+)\s*:\s*ARRAY\[([^\]]*)\]\s*OF\s+LREAL\s*:=\s*\[([^\]]*)\];", re.MULTILINE)
 
 
+_SCALAR = re.compile(r"^\s*(\w+)\s*:\s*(LREAL|DINT)\s*:=\s*([^;]+);", re.MULTILINE)
+
+
 def read_global_constants(text: str) -> dict:
-    """The LREAL arrays of a VAR_GLOBAL CONSTANT file, as nested lists of floats.
+    """The LREAL arrays (as nested lists of floats) and LREAL and DINT scalars of a VAR_GLOBAL
+    CONSTANT file.
 
     blark's Earley grammar is ambiguous on a bare list of array elements, and its parse time grows
     with the cube of the list (200 numbers take a minute): the numbers of these long initialisers
@@ -51,6 +55,8 @@ def read_global_constants(text: str) -> dict:
         shape = [int(stop) - int(start) + 1 for start, stop in (r.split("..") for r in ranges.split(","))]
         flat = np.array([float(v) for v in values.split(",")])
         constants[name] = flat.reshape(shape).tolist()
+    for name, kind, value in _SCALAR.findall(text):
+        constants[name] = int(value) if kind == "DINT" else float(value)
     return constants
 
 

@@ -29,13 +29,15 @@ def recorded_run(scene_name: str):
 
 @pytest.mark.parametrize("scene_name, block_name", [("pid_paper", "FB_BwrPid"),
                                                     ("computed_torque_paper", "FB_BwrComputedTorque"),
-                                                    ("computed_torque_heavy", "FB_BwrComputedTorque")])
+                                                    ("computed_torque_heavy", "FB_BwrComputedTorque"),
+                                                    ("paper_individual_gains", "FB_BwrFuzzyModel")])
 def test_exported_block_gives_the_twins_forces(tmp_path, scene_name, block_name):
     result = export("plc", scene_name, "--out", tmp_path / "plc", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     folder = tmp_path / "plc"
-    machine = folder / "GVL_BwrMachine.st"
-    constants = read_global_constants(machine.read_text()) if machine.exists() else {}
+    constants = {}
+    for global_list in folder.glob("GVL_*.st"):
+        constants |= read_global_constants(global_list.read_text())
     block = load_block((folder / f"{block_name}.st").read_text(), constants)()
     r = recorded_run(scene_name)
     assert len(r.time) == round(r.trajectory.duration / r.scene.simulation.control_period) + 1  # every period
@@ -52,9 +54,15 @@ def test_exported_block_gives_the_twins_forces(tmp_path, scene_name, block_name)
 
 
 def test_what_cannot_be_exported_is_refused_in_one_line(tmp_path):
-    result = export("plc", "paper_individual_gains", "--out", tmp_path / "plc", cwd=tmp_path)  # fuzzy: not yet
-    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
-    assert "paper_individual_gains.toml" in result.stderr and "'fuzzy_model'" in result.stderr
+    scene = tmp_path / "own.toml"
+    scene.write_text('extends = "paper_individual_gains"\n[controller]\ntype = "my_law.py:MyLaw"\n')
+    (tmp_path / "my_law.py").write_text(
+        "from bwr_twin.control.interface import Controller\n\nclass MyLaw(Controller):\n"
+        "    from dataclasses import dataclass as _d\n    @_d(frozen=True)\n    class Settings:\n        pass\n"
+        "    def compute(self, q, qd, q_ref, qd_ref, qdd_ref, ids):\n        return 0 * q\n")
+    result = export("plc", scene, "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "Traceback" not in result.stderr, result.stderr
+    assert "own.toml" in result.stderr and "my_law.py:MyLaw" in result.stderr
     assert not (tmp_path / "plc").exists()
 
 

@@ -1,12 +1,14 @@
 """A scene's controller as IEC 61131-3 Structured Text, in a folder the twin marks as its own.
 
-    DIR/FB_BwrPid.st or FB_BwrComputedTorque.st   the function block, its gains as VAR CONSTANT
+    DIR/FB_BwrPid.st, FB_BwrComputedTorque.st or FB_BwrFuzzyModel.st   the block, its gains as VAR CONSTANT
+    DIR/GVL_BwrFuzzySurface.st   the fuzzy controller's control surface, as the twin evaluates it
     DIR/GVL_BwrMachine.st   the believed machine's M(q) and gravity in closed form (model-based blocks)
     DIR/README.md           inputs, outputs, units, the cycle time, how to wire the block
 
 The block's arithmetic is the twin's own, operation for operation, so that the LREAL block gives
-the forces the twin's controller gives (tests/test_plc_export.py runs it on recorded runs). The PID
-and computed torque are exported so far; another type is refused in one line.
+the forces the twin's controller gives (tests/test_plc_export.py runs it on recorded runs). The PID,
+computed torque and the paper's fuzzy + model-based controller are exported; an engineer's own
+controller type is refused in one line.
 """
 
 from __future__ import annotations
@@ -15,19 +17,24 @@ from pathlib import Path
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
-from bwr_twin.export.structured_text import computed_torque_block, machine_globals, pid_block
+from bwr_twin.control.fuzzy import FuzzySurface
+from bwr_twin.export.structured_text import (computed_torque_block, fuzzy_model_block, machine_globals, pid_block,
+                                             surface_globals)
+from bwr_twin.fis.convert import load_rule_base
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.rundir import staged_directory
 
 PID_BLOCK = "FB_BwrPid"
 COMPUTED_TORQUE_BLOCK = "FB_BwrComputedTorque"
+FUZZY_MODEL_BLOCK = "FB_BwrFuzzyModel"
 MACHINE_GLOBALS = "GVL_BwrMachine"
+SURFACE_GLOBALS = "GVL_BwrFuzzySurface"
 
 
 def export_plc(scene: Scene, out: Path, *, overwrite: bool = False) -> list[Path]:
     """Write the scene's controller into `out` (replaced only if the twin wrote it, with
     `overwrite`); the files written, as they are named in `out`."""
-    writers = {"pid": _pid, "computed_torque": _computed_torque}
+    writers = {"pid": _pid, "computed_torque": _computed_torque, "fuzzy_model": _fuzzy_model}
     if scene.controller.type not in writers:
         raise SceneError(f"{scene.path}: [controller] type {scene.controller.type!r} cannot be exported as PLC "
                          f"code yet (exported: {', '.join(writers)})")
@@ -56,6 +63,21 @@ def _computed_torque(scene: Scene, believed: Machine) -> tuple[str, dict[str, st
     }
 
 
+def _fuzzy_model(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
+    settings = scene.controller.settings
+    dynamics = believed.dynamics
+    surface = FuzzySurface.load(load_rule_base(settings.rule_base))  # the table the twin's controller reads
+    _, e0, scale_e, ec0, scale_ec, _ = surface.kernel
+    return FUZZY_MODEL_BLOCK, {
+        f"{FUZZY_MODEL_BLOCK}.st": fuzzy_model_block(FUZZY_MODEL_BLOCK, settings.input_scale_e, settings.input_scale_ec,
+                                                     settings.output_gain, settings.acceleration_feedforward,
+                                                     scene.path.name),
+        f"{SURFACE_GLOBALS}.st": surface_globals(surface.values, surface.centres, e0, scale_e, ec0, scale_ec,
+                                                 settings.rule_base.name),
+        f"{MACHINE_GLOBALS}.st": machine_globals(dynamics.mass, dynamics.gravity, believed.path.name),
+    }
+
+
 _DESCRIPTIONS = {
     PID_BLOCK: ("the per-axis PID", "bwr_twin.control.pid",
                 "Call it once every control period, {period:g} s (its constant DT): a cycle time other than DT "
@@ -67,6 +89,13 @@ _DESCRIPTIONS = {
                             "the scene's, as VAR CONSTANT; M(q) and the bias forces come from GVL_BwrMachine.st, "
                             "the believed machine's closed form: add that global variable list to the project "
                             "with the block. The block does not clip: the drives' own limits do."),
+    FUZZY_MODEL_BLOCK: ("the fuzzy + model-based controller", "bwr_twin.control.controller",
+                        "It holds no state; the twin calls it every {period:g} s. The input scales SCALE_E, "
+                        "SCALE_EC and the output gains are the scene's, as VAR CONSTANT. The control surface is "
+                        "GVL_BwrFuzzySurface.st, the table the twin itself evaluates (skfuzzy's Mamdani inference "
+                        "on a grid, four triangles a cell); M(q) and the bias forces come from GVL_BwrMachine.st. "
+                        "Add both global variable lists to the project with the block. The block does not clip: "
+                        "the drives' own limits do."),
 }
 
 
@@ -76,7 +105,7 @@ def _readme(scene: Scene, block: str, period: float) -> str:
               ("qd[0..2]", "m/s, rad/s, rad/s", "their velocities"),
               ("q_ref[0..2]", "m, rad, rad", "the path's reference position"),
               ("qd_ref[0..2]", "m/s, rad/s, rad/s", "the reference velocity")]
-    if block == COMPUTED_TORQUE_BLOCK:
+    if block != PID_BLOCK:
         inputs.append(("qdd_ref[0..2]", "m/s^2, rad/s^2, rad/s^2", "the reference acceleration"))
     rows = "\n".join(f"| `{name}` | {units} | {wire} |" for name, units, wire in inputs)
     return f"""# {block}: {what} of {scene.path.name}, as IEC 61131-3 Structured Text

@@ -171,6 +171,27 @@ _DYNAMICS_STATEMENTS = [
 ]
 
 
+_TORQUE_STATEMENTS = [
+    "(* force = M(q) u + bias(q, qd), each row summed in the twin's order *)",
+    "FOR i := 0 TO 2 DO",
+    "    inertial := 0.0;",
+    "    FOR j := 0 TO 2 DO",
+    "        inertial := inertial + mass[i, j] * u[j];",
+    "    END_FOR",
+    "    force[i] := inertial + bias[i];",
+    "END_FOR",
+]
+_INPUTS = [
+    "VAR_INPUT",
+    f"    q : ARRAY[0..2] OF LREAL;        (* measured position: m, rad, rad *) {AXES_COMMENT}",
+    "    qd : ARRAY[0..2] OF LREAL;       (* measured velocity: m/s, rad/s, rad/s *)",
+    "    q_ref : ARRAY[0..2] OF LREAL;    (* reference position: m, rad, rad *)",
+    "    qd_ref : ARRAY[0..2] OF LREAL;   (* reference velocity: m/s, rad/s, rad/s *)",
+    "    qdd_ref : ARRAY[0..2] OF LREAL;  (* reference acceleration: m/s^2, rad/s^2, rad/s^2 *)",
+    "END_VAR",
+]
+
+
 def computed_torque_block(name: str, kp, kd, source: str) -> str:
     """The twin's computed-torque PD (bwr_twin.control.computed_torque) as a FUNCTION_BLOCK."""
     return "\n".join([
@@ -178,13 +199,7 @@ def computed_torque_block(name: str, kp, kd, source: str) -> str:
         f"(* The computed-torque PD of {source}, exported by python -m bwr_twin.export plc.",
         "   force = M(q) u + bias(q, qd), u = qdd_ref + KP (q_ref - q) + KD (qd_ref - qd), with M and bias",
         "   of the believed machine in closed form (GVL_BwrMachine). No state: call it every control period. *)",
-        "VAR_INPUT",
-        f"    q : ARRAY[0..2] OF LREAL;        (* measured position: m, rad, rad *) {AXES_COMMENT}",
-        "    qd : ARRAY[0..2] OF LREAL;       (* measured velocity: m/s, rad/s, rad/s *)",
-        "    q_ref : ARRAY[0..2] OF LREAL;    (* reference position: m, rad, rad *)",
-        "    qd_ref : ARRAY[0..2] OF LREAL;   (* reference velocity: m/s, rad/s, rad/s *)",
-        "    qdd_ref : ARRAY[0..2] OF LREAL;  (* reference acceleration: m/s^2, rad/s^2, rad/s^2 *)",
-        "END_VAR",
+        *_INPUTS,
         "VAR_OUTPUT",
         "    force : ARRAY[0..2] OF LREAL;    (* drive force command: N, N m, N m *)",
         "    u : ARRAY[0..2] OF LREAL;        (* acceleration command: m/s^2, rad/s^2, rad/s^2 *)",
@@ -203,12 +218,112 @@ def computed_torque_block(name: str, kp, kd, source: str) -> str:
         "FOR i := 0 TO 2 DO",
         "    u[i] := qdd_ref[i] + (KP[i] * (q_ref[i] - q[i]) + KD[i] * (qd_ref[i] - qd[i]));",
         "END_FOR",
-        "FOR i := 0 TO 2 DO",
-        "    inertial := 0.0;",
-        "    FOR j := 0 TO 2 DO",
-        "        inertial := inertial + mass[i, j] * u[j];",
-        "    END_FOR",
-        "    force[i] := inertial + bias[i];",
+        *_TORQUE_STATEMENTS,
+        "END_FUNCTION_BLOCK",
+    ]) + "\n"
+
+
+def surface_globals(values: np.ndarray, centres: np.ndarray, e0: float, scale_e: float, ec0: float,
+                    scale_ec: float, source: str) -> str:
+    """GVL_BwrFuzzySurface: the rule base's control surface as the twin evaluates it (bwr_twin.control.fuzzy)."""
+    n = values.shape[0]
+    return "\n".join([
+        "VAR_GLOBAL CONSTANT",
+        f"    (* The control surface u = FLC(e, ec) of {source}: skfuzzy's Mamdani inference on a {n} x {n}",
+        "       grid over the input universes and at the cell centres. Each cell is cut along both diagonals",
+        "       into four triangles through the centre, so that the surface's kinks (min-AND, max-aggregation)",
+        "       stay on grid lines and cell diagonals; inputs beyond the universes saturate at their ends. *)",
+        matrix_constant("SURFACE_VALUES", values, "u at (e_i, ec_j), in the output universe"),
+        matrix_constant("SURFACE_CENTRES", centres, "u at the cell centres"),
+        f"    SURFACE_E0 : LREAL := {lreal(e0)};  (* the e universe's lower end *)",
+        f"    SURFACE_SCALE_E : LREAL := {lreal(scale_e)};  (* cells per unit of e *)",
+        f"    SURFACE_EC0 : LREAL := {lreal(ec0)};",
+        f"    SURFACE_SCALE_EC : LREAL := {lreal(scale_ec)};",
+        f"    SURFACE_CELLS : DINT := {n - 1};  (* cells along each input *)",
+        "END_VAR",
+    ]) + "\n"
+
+
+def _grid_cell(coordinate: str, cell: str, fraction: str) -> list[str]:
+    """The cell of a grid coordinate on [0, CELLS] and how far into it, saturated at the ends."""
+    return [
+        f"    IF {coordinate} > 0.0 AND {coordinate} < SURFACE_CELLS THEN",
+        f"        {cell} := TRUNC({coordinate}); {fraction} := {coordinate} - DINT_TO_LREAL({cell});",
+        f"    ELSIF {coordinate} <= 0.0 THEN",
+        f"        {cell} := 0; {fraction} := 0.0;",
+        "    ELSE",
+        f"        {cell} := SURFACE_CELLS - 1; {fraction} := 1.0;",
+        "    END_IF",
+    ]
+
+
+def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, feedforward: bool,
+                      source: str) -> str:
+    """The paper's controller (bwr_twin.control.controller): the fuzzy surface on top of the model."""
+    return "\n".join([
+        f"FUNCTION_BLOCK {name}",
+        f"(* The fuzzy + model-based controller of {source} (Lu's Fig. 5 and 11), exported by",
+        "   python -m bwr_twin.export plc. Per axis u = OUTPUT_GAIN FLC(SCALE_E e, SCALE_EC de/dt)",
+        "   [+ qdd_ref], e = q_ref - q, the control surface FLC from GVL_BwrFuzzySurface; then",
+        "   force = M(q) u + bias(q, qd) with the believed machine of GVL_BwrMachine. No state. *)",
+        *_INPUTS,
+        "VAR_OUTPUT",
+        "    force : ARRAY[0..2] OF LREAL;         (* drive force command: N, N m, N m *)",
+        "    u : ARRAY[0..2] OF LREAL;             (* acceleration command: m/s^2, rad/s^2, rad/s^2 *)",
+        "    fuzzy_output : ARRAY[0..2] OF LREAL;  (* FLC output, in its output universe *)",
+        "END_VAR",
+        "VAR",
+        *_DYNAMICS_VARIABLES,
+        "    inertial : LREAL;",
+        "    grid_e : LREAL;   (* grid coordinates of the scaled inputs *)",
+        "    grid_ec : LREAL;",
+        "    cell_e : DINT;",
+        "    cell_ec : DINT;",
+        "    s : LREAL;        (* how far into the cell, along e and ec *)",
+        "    t : LREAL;",
+        "    v00 : LREAL;",
+        "    v10 : LREAL;",
+        "    v01 : LREAL;",
+        "    v11 : LREAL;",
+        "    c2 : LREAL;",
+        "    ta : LREAL;       (* the triangle's plane: ta + tb s + tc t *)",
+        "    tb : LREAL;",
+        "    tc : LREAL;",
+        "END_VAR",
+        "VAR CONSTANT",
+        f"    SCALE_E : LREAL := {lreal(scale_e)};  (* K_e: 1/m, 1/rad *)",
+        f"    SCALE_EC : LREAL := {lreal(scale_ec)};  (* K_ec: s/m, s/rad *)",
+        constant("OUTPUT_GAIN", output_gain, "K_out: m/s^2, rad/s^2, rad/s^2 per unit of the output universe"),
+        f"    FEEDFORWARD : DINT := {int(feedforward)};  (* 1: add the reference acceleration to u *)",
+        f"    ENTRY_ROW : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_ROWS))}];",
+        f"    ENTRY_COLUMN : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_COLUMNS))}];",
+        "END_VAR",
+        "FOR j := 0 TO 2 DO",
+        "    grid_e := ((q_ref[j] - q[j]) * SCALE_E - SURFACE_E0) * SURFACE_SCALE_E;",
+        "    grid_ec := ((qd_ref[j] - qd[j]) * SCALE_EC - SURFACE_EC0) * SURFACE_SCALE_EC;",
+        *_grid_cell("grid_e", "cell_e", "s"),
+        *_grid_cell("grid_ec", "cell_ec", "t"),
+        "    v00 := SURFACE_VALUES[cell_e, cell_ec]; v10 := SURFACE_VALUES[cell_e + 1, cell_ec];",
+        "    v01 := SURFACE_VALUES[cell_e, cell_ec + 1]; v11 := SURFACE_VALUES[cell_e + 1, cell_ec + 1];",
+        "    c2 := 2.0 * SURFACE_CENTRES[cell_e, cell_ec];",
+        "    IF s < t THEN",
+        "        IF s + t >= 1.0 THEN",
+        "            ta := c2 - v11; tb := v11 - v01; tc := v01 + v11 - c2;",
+        "        ELSE",
+        "            ta := v00; tb := c2 - v00 - v01; tc := v01 - v00;",
+        "        END_IF",
+        "    ELSIF s + t >= 1.0 THEN",
+        "        ta := c2 - v11; tb := v10 + v11 - c2; tc := v11 - v10;",
+        "    ELSE",
+        "        ta := v00; tb := v10 - v00; tc := c2 - v00 - v10;",
+        "    END_IF",
+        "    fuzzy_output[j] := ta + tb * s + tc * t;",
+        "    u[j] := fuzzy_output[j] * OUTPUT_GAIN[j];",
+        "    IF FEEDFORWARD = 1 THEN",
+        "        u[j] := u[j] + qdd_ref[j];",
+        "    END_IF",
         "END_FOR",
+        *_DYNAMICS_STATEMENTS,
+        *_TORQUE_STATEMENTS,
         "END_FUNCTION_BLOCK",
     ]) + "\n"
