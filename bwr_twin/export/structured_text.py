@@ -118,6 +118,7 @@ _DYNAMICS_VARIABLES = [
     "    slope_slew : LREAL;",
     "    slope_luff : LREAL;",
     "    sum : LREAL;",
+    "    inertial : LREAL;",
     "    a : DINT;",
     "    b : DINT;",
     "    n : DINT;",
@@ -129,6 +130,10 @@ _DYNAMICS_VARIABLES = [
 ]
 _ENTRY_ROWS = (0, 0, 0, 1, 1, 2)  # M's upper entries, as the coefficients' rows hold them
 _ENTRY_COLUMNS = (0, 1, 2, 1, 2, 2)
+_ENTRY_CONSTANTS = [
+    f"    ENTRY_ROW : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_ROWS))}];",
+    f"    ENTRY_COLUMN : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_COLUMNS))}];",
+]
 _DYNAMICS_STATEMENTS = [
     "(* M(q) and bias(q, qd) at the measured state *)",
     "outer[0] := 1.0; outer[1] := COS(q[1]); outer[2] := SIN(q[1]);",
@@ -206,13 +211,11 @@ def computed_torque_block(name: str, kp, kd, source: str) -> str:
         "END_VAR",
         "VAR",
         *_DYNAMICS_VARIABLES,
-        "    inertial : LREAL;",
         "END_VAR",
         "VAR CONSTANT",
         constant("KP", kp, "1/s^2"),
         constant("KD", kd, "1/s"),
-        f"    ENTRY_ROW : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_ROWS))}];",
-        f"    ENTRY_COLUMN : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_COLUMNS))}];",
+        *_ENTRY_CONSTANTS,
         "END_VAR",
         *_DYNAMICS_STATEMENTS,
         "FOR i := 0 TO 2 DO",
@@ -274,7 +277,6 @@ def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, f
         "END_VAR",
         "VAR",
         *_DYNAMICS_VARIABLES,
-        "    inertial : LREAL;",
         "    grid_e : LREAL;   (* grid coordinates of the scaled inputs *)",
         "    grid_ec : LREAL;",
         "    cell_e : DINT;",
@@ -295,8 +297,7 @@ def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, f
         f"    SCALE_EC : LREAL := {lreal(scale_ec)};  (* K_ec: s/m, s/rad *)",
         constant("OUTPUT_GAIN", output_gain, "K_out: m/s^2, rad/s^2, rad/s^2 per unit of the output universe"),
         f"    FEEDFORWARD : DINT := {int(feedforward)};  (* 1: add the reference acceleration to u *)",
-        f"    ENTRY_ROW : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_ROWS))}];",
-        f"    ENTRY_COLUMN : ARRAY[0..5] OF DINT := [{', '.join(map(str, _ENTRY_COLUMNS))}];",
+        *_ENTRY_CONSTANTS,
         "END_VAR",
         "FOR j := 0 TO 2 DO",
         "    grid_e := ((q_ref[j] - q[j]) * SCALE_E - SURFACE_E0) * SURFACE_SCALE_E;",
