@@ -26,19 +26,32 @@ _FUNCTIONS = {"MIN": "min", "MAX": "max", "COS": "_math.cos", "SIN": "_math.sin"
 
 def load_block(text: str, global_constants: dict | None = None):
     """The first FUNCTION_BLOCK of the ST `text` as a Python class (instances keep their state);
-    names it does not declare are looked up in `global_constants` (`read_global_constants`)."""
+    names it does not declare are looked up in `global_constants` (`read_global_constants`). A
+    block declared in REAL computes in numpy's float32, every literal, input and result rounded
+    to single precision as a PLC's REAL is."""
     parsed = parse_source_code(text)
     if parsed.exception is not None:
         raise parsed.exception
     source = parsed.transform()
     block = next(item for item in source.items if isinstance(item, tf.FunctionBlock))
-    return _Translator(block, global_constants or {}).build()
+    real = "LREAL" not in text and " REAL" in text
+    constants = global_constants or {}
+    if real:
+        constants = {name: _single(value) for name, value in constants.items()}
+    return _Translator(block, constants, real).build()
 
 
-_GLOBAL = re.compile(r"^\s*(\w+)\s*:\s*ARRAY\[([^\]]*)\]\s*OF\s+LREAL\s*:=\s*\[([^\]]*)\];", re.MULTILINE)
+def _single(value):
+    """A constant as a PLC's REAL holds it: float32, in nested lists for arrays."""
+    if isinstance(value, list):
+        return [_single(v) for v in value]
+    return np.float32(value) if isinstance(value, float) else value
 
 
-_SCALAR = re.compile(r"^\s*(\w+)\s*:\s*(LREAL|DINT)\s*:=\s*([^;]+);", re.MULTILINE)
+_GLOBAL = re.compile(r"^\s*(\w+)\s*:\s*ARRAY\[([^\]]*)\]\s*OF\s+L?REAL\s*:=\s*\[([^\]]*)\];", re.MULTILINE)
+
+
+_SCALAR = re.compile(r"^\s*(\w+)\s*:\s*(L?REAL|DINT)\s*:=\s*([^;]+);", re.MULTILINE)
 
 
 def read_global_constants(text: str) -> dict:
@@ -61,8 +74,9 @@ def read_global_constants(text: str) -> dict:
 
 
 class _Translator:
-    def __init__(self, block, global_constants: dict):
+    def __init__(self, block, global_constants: dict, real: bool = False):
         self.block = block
+        self.real = real
         self.global_constants = global_constants
         self.declared: set[str] = set()
         self.inputs: list[str] = []
@@ -82,17 +96,20 @@ class _Translator:
                     self.init.append(f"        self.{name} = {value}")
         lines = ["class Block:", "    def __init__(self):"] + (self.init or ["        pass"])
         lines += ["    def __call__(self, " + ", ".join(self.inputs) + "):"]
-        lines += [f"        self.{name} = {name}" for name in self.inputs]
+        cast = "_F" if self.real else ""
+        lines += [f"        self.{name} = {cast}({name})" if cast else f"        self.{name} = {name}"
+                  for name in self.inputs]
         lines += self.statements(self.block.body, 2) or ["        pass"]
-        namespace = {"_math": math, "_trunc": lambda x: int(x), "_limit": lambda mn, x, mx: min(max(x, mn), mx),
-                     "_G": self.global_constants}
+        namespace = {"_math": np if self.real else math, "_trunc": lambda x: int(x),
+                     "_limit": lambda mn, x, mx: min(max(x, mn), mx), "_G": self.global_constants,
+                     "_F": (lambda x: [np.float32(v) for v in x] if isinstance(x, list) else np.float32(x))}
         exec(compile("\n".join(lines), f"<{self.block.name}>", "exec"), namespace)
         return namespace["Block"]
 
     def initial(self, init) -> str:
         if isinstance(init, tf.ArrayTypeInitialization):
             lengths = [int(str(r.stop.value)) - int(str(r.start.value)) + 1 for r in init.spec.subranges]
-            zero = "0" if str(init.spec.type.type_name) == "DINT" else "0.0"
+            zero = "0" if str(init.spec.type.type_name) == "DINT" else self.real_literal(0.0)
             if init.value is None:
                 nested = f"[{zero}] * {lengths[-1]}"
                 for length in reversed(lengths[:-1]):
@@ -104,8 +121,11 @@ class _Translator:
         if isinstance(init, tf.TypeInitialization):
             if init.value is not None:
                 return self.expression(init.value)
-            return "0" if str(init.spec.type) == "DINT" else "0.0"
+            return "0" if str(init.spec.type) == "DINT" else self.real_literal(0.0)
         raise NotImplementedError(type(init).__name__)
+
+    def real_literal(self, value: float) -> str:
+        return f"_F({value!r})" if self.real else repr(value)
 
     def statements(self, statement_list, depth: int) -> list[str]:
         pad = "    " * depth
@@ -135,7 +155,7 @@ class _Translator:
 
     def expression(self, node) -> str:
         if isinstance(node, tf.Real):
-            return repr(float(str(node.value)))
+            return self.real_literal(float(str(node.value)))
         if isinstance(node, tf.Integer):
             return str(int(str(node.value)))
         if isinstance(node, tf.SimpleVariable):
@@ -156,7 +176,9 @@ class _Translator:
         if isinstance(node, tf.BinaryOperation):
             return f"({self.expression(node.left)} {_BINARY[str(node.op).upper()]} {self.expression(node.right)})"
         if isinstance(node, tf.FunctionCall):
-            name = _FUNCTIONS[str(node.name.name).upper()]
+            name = _FUNCTIONS[str(node.name.name).upper().replace("_TO_REAL", "_TO_LREAL")]
+            if self.real and name == "float":
+                name = "_F"
             return f"{name}(" + ", ".join(self.expression(p.value) for p in node.parameters) + ")"
         raise NotImplementedError(type(node).__name__)
 

@@ -76,3 +76,28 @@ def test_an_export_replaces_only_its_own_folder(tmp_path):
     assert export("plc", "pid_paper", "--out", tmp_path / "ours", cwd=tmp_path).returncode == 0
     again = export("plc", "pid_paper", "--out", tmp_path / "ours", "--overwrite", cwd=tmp_path)
     assert again.returncode == 0, again.stderr
+
+
+def test_real_variant_stays_within_its_rounding(tmp_path):
+    """--real declares every number REAL: the block computes in float32 and its forces stay within
+    1e-4 of each axis's force range of the twin's on the paper's 700 s (measured: 5e-5)."""
+    result = export("plc", "paper_individual_gains", "--real", "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    folder = tmp_path / "plc"
+    texts = {path.name: path.read_text() for path in folder.glob("*.st")}
+    assert not any("LREAL" in text for text in texts.values())
+    assert "32-bit" in (folder / "README.md").read_text()
+    constants = {}
+    for name, text in texts.items():
+        if name.startswith("GVL_"):
+            constants |= read_global_constants(text)
+    block = load_block(texts["FB_BwrFuzzyModel.st"], constants)()
+    r = recorded_run("paper_individual_gains")
+    forces = np.empty_like(r.drive_force_command)
+    for k in range(len(r.time)):
+        block(list(r.q_measured[k]), list(r.qd_measured[k]), list(r.q_desired[k]), list(r.qd_desired[k]),
+              list(r.qdd_desired[k]))
+        forces[k] = block.force
+    assert isinstance(block.force[0], np.float32)
+    of_range = np.abs(forces - r.drive_force_command).max(axis=0) / np.ptp(r.drive_force_command, axis=0)
+    assert (of_range <= 1e-4).all() and (of_range > 0).all()  # rounded, and only by rounding

@@ -22,6 +22,7 @@ def main(argv: list[str] | None = None) -> int:
     plc = commands.add_parser("plc", help="the controller as IEC 61131-3 Structured Text")
     plc.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
     plc.add_argument("--out", required=True, type=Path, help="output directory (must not exist)")
+    plc.add_argument("--real", action="store_true", help="REAL (32-bit) instead of LREAL, for PLCs without LREAL")
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
     args = parser.parse_args(argv)
     return exit_status(lambda: _plc(args))
@@ -33,7 +34,7 @@ def _plc(args) -> int:
     from bwr_twin.shipped import find_scene
 
     scene = load_scene(find_scene(args.scene))
-    for path in export_plc(scene, args.out, overwrite=args.overwrite):
+    for path in export_plc(scene, args.out, real=args.real, overwrite=args.overwrite):
         print(path)
     return 0
 

@@ -18,8 +18,8 @@ from pathlib import Path
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.control.fuzzy import FuzzySurface
-from bwr_twin.export.structured_text import (computed_torque_block, fuzzy_model_block, machine_globals, pid_block,
-                                             surface_globals)
+from bwr_twin.export.structured_text import (as_real, computed_torque_block, fuzzy_model_block, machine_globals,
+                                             pid_block, surface_globals)
 from bwr_twin.fis.convert import load_rule_base
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.rundir import staged_directory
@@ -31,15 +31,18 @@ MACHINE_GLOBALS = "GVL_BwrMachine"
 SURFACE_GLOBALS = "GVL_BwrFuzzySurface"
 
 
-def export_plc(scene: Scene, out: Path, *, overwrite: bool = False) -> list[Path]:
+def export_plc(scene: Scene, out: Path, *, real: bool = False, overwrite: bool = False) -> list[Path]:
     """Write the scene's controller into `out` (replaced only if the twin wrote it, with
-    `overwrite`); the files written, as they are named in `out`."""
+    `overwrite`), in LREAL or, with `real`, REAL; the files written, as they are named in `out`."""
     writers = {"pid": _pid, "computed_torque": _computed_torque, "fuzzy_model": _fuzzy_model}
     if scene.controller.type not in writers:
         raise SceneError(f"{scene.path}: [controller] type {scene.controller.type!r} cannot be exported as PLC "
                          f"code yet (exported: {', '.join(writers)})")
     block, files = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
     files["README.md"] = _readme(scene, block, scene.simulation.control_period)
+    if real:
+        files = {name: as_real(text) for name, text in files.items()}
+        files["README.md"] += _REAL_NOTE
     with staged_directory(out, overwrite=overwrite, kind="plc") as staging:
         for name, content in files.items():
             (staging / name).write_text(content, encoding="utf-8")
@@ -77,6 +80,11 @@ def _fuzzy_model(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
         f"{MACHINE_GLOBALS}.st": machine_globals(dynamics.mass, dynamics.gravity, believed.path.name),
     }
 
+
+_REAL_NOTE = """
+This is the REAL (32-bit) variant: every number and operation rounds to single precision, so the
+forces differ from the twin's by the rounding (docs/plc_export.md gives the measured difference).
+"""
 
 _DESCRIPTIONS = {
     PID_BLOCK: ("the per-axis PID", "bwr_twin.control.pid",

@@ -27,6 +27,17 @@ def lreal(value: float) -> str:
     return f"{mantissa}E{exponent}" if exponent else mantissa
 
 
+REAL_MAX = float(np.finfo(np.float32).max)
+
+
+def as_real(text: str) -> str:
+    """The REAL (32-bit) variant of an exported text, for PLCs without LREAL: every LREAL declared
+    REAL (DINT_TO_LREAL becoming DINT_TO_REAL). Literals keep their double's digits, which the
+    compiler rounds to the nearest REAL; an unrated drive's limit becomes the largest REAL."""
+    return (text.replace(lreal(LREAL_MAX), lreal(REAL_MAX)).replace("LREAL", "REAL")
+            .replace("64-bit", "32-bit"))
+
+
 def lreal_array(values: Sequence[float]) -> str:
     return "[" + ", ".join(lreal(v) for v in values) + "]"
 
