@@ -13,6 +13,7 @@ from conftest import SCENES
 from st_python import load_block, read_global_constants
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.config.scene_toml import scene_toml
 from bwr_twin.sim.lockstep import simulate
 
 
@@ -101,3 +102,29 @@ def test_real_variant_stays_within_its_rounding(tmp_path):
     assert isinstance(block.force[0], np.float32)
     of_range = np.abs(forces - r.drive_force_command).max(axis=0) / np.ptp(r.drive_force_command, axis=0)
     assert (of_range <= 1e-4).all() and (of_range > 0).all()  # rounded, and only by rounding
+
+
+def test_a_tuned_scene_exports_as_itself(tmp_path):
+    """A tuning's best_scene.toml (here the tuned gains of docs/tuning.md, written as the tuner
+    writes it): its gains and scales are the block's constants, and the block gives its forces."""
+    tuned = {"controller.output_gain": [0.0197, 0.0415, 0.0186], "controller.input_scale_e": 86.7,
+             "controller.input_scale_ec": 416.0, "simulation.record_period": 0.01}
+    best = tmp_path / "best_scene.toml"
+    best.write_text(scene_toml(load_scene(SCENES / "paper_individual_gains.toml", tuned), "tuned"))
+    result = export("plc", best, "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    folder = tmp_path / "plc"
+    text = (folder / "FB_BwrFuzzyModel.st").read_text()
+    assert "OUTPUT_GAIN : ARRAY[0..2] OF LREAL := [0.0197, 0.0415, 0.0186];" in text
+    assert "SCALE_E : LREAL := 86.7;" in text and "SCALE_EC : LREAL := 416.0;" in text
+    constants = {}
+    for global_list in folder.glob("GVL_*.st"):
+        constants |= read_global_constants(global_list.read_text())
+    block = load_block(text, constants)()
+    r = simulate(load_scene(best))
+    forces = np.empty_like(r.drive_force_command)
+    for k in range(len(r.time)):
+        block(list(r.q_measured[k]), list(r.qd_measured[k]), list(r.q_desired[k]), list(r.qd_desired[k]),
+              list(r.qdd_desired[k]))
+        forces[k] = block.force
+    assert np.array_equal(forces, r.drive_force_command)
