@@ -3,6 +3,7 @@
     DIR/FB_BwrPid.st, FB_BwrComputedTorque.st or FB_BwrFuzzyModel.st   the block, its gains as VAR CONSTANT
     DIR/GVL_BwrFuzzySurface.st   the fuzzy controller's control surface, as the twin evaluates it
     DIR/GVL_BwrMachine.st   the believed machine's M(q) and gravity in closed form (model-based blocks)
+    DIR/bwr_twin_plc.xml    the same, as a PLCopen XML (TC6 v2.01) project for CODESYS, TwinCAT, ...
     DIR/README.md           inputs, outputs, units, the cycle time, how to wire the block
 
 The block's arithmetic is the twin's own, operation for operation, so that the LREAL block gives
@@ -18,8 +19,9 @@ from pathlib import Path
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.control.fuzzy import FuzzySurface
-from bwr_twin.export.structured_text import (as_real, computed_torque_block, fuzzy_model_block, machine_globals,
-                                             pid_block, surface_globals)
+from bwr_twin.export.blocks import computed_torque_block, fuzzy_model_block, machine_globals, pid_block, surface_globals
+from bwr_twin.export.plcopen import project_xml
+from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, block_text, globals_text
 from bwr_twin.fis.convert import load_rule_base
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.rundir import staged_directory
@@ -29,6 +31,7 @@ COMPUTED_TORQUE_BLOCK = "FB_BwrComputedTorque"
 FUZZY_MODEL_BLOCK = "FB_BwrFuzzyModel"
 MACHINE_GLOBALS = "GVL_BwrMachine"
 SURFACE_GLOBALS = "GVL_BwrFuzzySurface"
+PROJECT = "bwr_twin_plc.xml"  # the same POUs as a PLCopen XML (TC6 v2.01) project
 
 
 def export_plc(scene: Scene, out: Path, *, real: bool = False, overwrite: bool = False) -> list[Path]:
@@ -38,8 +41,11 @@ def export_plc(scene: Scene, out: Path, *, real: bool = False, overwrite: bool =
     if scene.controller.type not in writers:
         raise SceneError(f"{scene.path}: [controller] type {scene.controller.type!r} cannot be exported as PLC "
                          f"code yet (exported: {', '.join(writers)})")
-    block, files = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
-    files["README.md"] = _readme(scene, block, scene.simulation.control_period)
+    block, constants = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
+    files = {f"{block.name}.st": block_text(block)}
+    files |= {f"{c.name}.st": globals_text(c) for c in constants}
+    files[PROJECT] = project_xml(block, constants, scene.path.name)
+    files["README.md"] = _readme(scene, block.name, scene.simulation.control_period)
     if real:
         files = {name: as_real(text) for name, text in files.items()}
         files["README.md"] += _REAL_NOTE
@@ -49,36 +55,31 @@ def export_plc(scene: Scene, out: Path, *, real: bool = False, overwrite: bool =
     return [out / name for name in files]
 
 
-def _pid(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
+def _pid(scene: Scene, believed: Machine) -> tuple[Block, list[GlobalConstants]]:
     settings, limits = scene.controller.settings, believed.drive_limits  # the ratings the twin's PID clips to
-    text = pid_block(PID_BLOCK, settings.kp, settings.ki, settings.kd, settings.holding_force, limits[:, 0],
-                     limits[:, 1], scene.simulation.control_period, scene.path.name)
-    return PID_BLOCK, {f"{PID_BLOCK}.st": text}
+    return pid_block(PID_BLOCK, settings.kp, settings.ki, settings.kd, settings.holding_force, limits[:, 0],
+                     limits[:, 1], scene.simulation.control_period, scene.path.name), []
 
 
-def _computed_torque(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
-    settings = scene.controller.settings
+def _machine(believed: Machine) -> GlobalConstants:
     dynamics = believed.dynamics  # a machine outside the contract's closed form is refused here
-    return COMPUTED_TORQUE_BLOCK, {
-        f"{COMPUTED_TORQUE_BLOCK}.st": computed_torque_block(COMPUTED_TORQUE_BLOCK, settings.kp, settings.kd,
-                                                             scene.path.name),
-        f"{MACHINE_GLOBALS}.st": machine_globals(dynamics.mass, dynamics.gravity, believed.path.name),
-    }
+    return machine_globals(MACHINE_GLOBALS, dynamics.mass, dynamics.gravity, believed.path.name)
 
 
-def _fuzzy_model(scene: Scene, believed: Machine) -> tuple[str, dict[str, str]]:
+def _computed_torque(scene: Scene, believed: Machine) -> tuple[Block, list[GlobalConstants]]:
     settings = scene.controller.settings
-    dynamics = believed.dynamics
+    return computed_torque_block(COMPUTED_TORQUE_BLOCK, settings.kp, settings.kd, scene.path.name), [_machine(believed)]
+
+
+def _fuzzy_model(scene: Scene, believed: Machine) -> tuple[Block, list[GlobalConstants]]:
+    settings = scene.controller.settings
     surface = FuzzySurface.load(load_rule_base(settings.rule_base))  # the table the twin's controller reads
     _, e0, scale_e, ec0, scale_ec, _ = surface.kernel
-    return FUZZY_MODEL_BLOCK, {
-        f"{FUZZY_MODEL_BLOCK}.st": fuzzy_model_block(FUZZY_MODEL_BLOCK, settings.input_scale_e, settings.input_scale_ec,
-                                                     settings.output_gain, settings.acceleration_feedforward,
-                                                     scene.path.name),
-        f"{SURFACE_GLOBALS}.st": surface_globals(surface.values, surface.centres, e0, scale_e, ec0, scale_ec,
-                                                 settings.rule_base.name),
-        f"{MACHINE_GLOBALS}.st": machine_globals(dynamics.mass, dynamics.gravity, believed.path.name),
-    }
+    block = fuzzy_model_block(FUZZY_MODEL_BLOCK, settings.input_scale_e, settings.input_scale_ec, settings.output_gain,
+                              settings.acceleration_feedforward, scene.path.name)
+    table = surface_globals(SURFACE_GLOBALS, surface.values, surface.centres, e0, scale_e, ec0, scale_ec,
+                            settings.rule_base.name)
+    return block, [table, _machine(believed)]
 
 
 _REAL_NOTE = """
@@ -130,4 +131,7 @@ arithmetic, in the same order, as the twin's controller ({module}). Axis 0 is tr
 | `force[0..2]` | N, N m, N m | the travel, slew and luff drives' force or torque setpoints |
 
 {notes.format(period=period)}
+
+`{PROJECT}` holds the same block and global constant lists as a PLCopen XML (TC6 v2.01) project:
+import it with your IEC 61131-3 tool's PLCopen XML import instead of adding the .st files by hand.
 """
