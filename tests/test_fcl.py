@@ -11,7 +11,7 @@ import fuzzylite as fl
 import numpy as np
 import pytest
 from conftest import SCENES
-from test_fis import TIPPER, run_cli
+from test_fis import TIPPER, random_system, run_cli
 
 from bwr_twin.errors import SceneError
 from bwr_twin.fis.convert import load_system
@@ -118,3 +118,24 @@ def test_fll_read_by_fuzzylite_agrees_with_evaluate(system, n):
     width = np.array([v.range[1] - v.range[0] for v in system.outputs])
     error = np.abs(fuzzylite_outputs(system, x) - evaluate(system, x, warn=False)) / width
     assert error.max() <= 1e-6
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_fll_of_random_systems(seed):
+    """Every set type, NOT in antecedents, don't care, OR, weights and every norm .fis and fuzzylite
+    share; rules without a condition (which fire by themselves in a .fis) and NOT in a consequent
+    are what FLL refuses."""
+    rng = np.random.default_rng(seed)
+    methods = (("min", "prod")[seed % 2], ("max", "probor")[seed // 2 % 2], ("min", "prod")[seed // 3 % 2],
+               ("max", "sum", "probor")[seed % 3], "centroid")
+    system = random_system(rng, methods)
+    rules = tuple(dataclasses.replace(r, consequent=tuple(abs(i) for i in r.consequent))
+                  for r in system.rules if any(r.antecedent))
+    system = dataclasses.replace(system, rules=rules)
+    x = random_inputs(system, 300, seed)
+    width = np.array([v.range[1] - v.range[0] for v in system.outputs])
+    assert np.abs(fuzzylite_outputs(system, x) - evaluate(system, x, warn=False)).max() / width.min() <= 1e-6
+    negated = dataclasses.replace(system, rules=(dataclasses.replace(rules[0], consequent=tuple(
+        -max(i, 1) for i in rules[0].consequent)),) + rules[1:])
+    with pytest.raises(SceneError, match="NOT in its consequent"):
+        fll_text(negated)

@@ -9,9 +9,9 @@ rounding (a comment in the file says so). Inputs lock their range (fuzzylite cli
 evaluation here does); an output with nothing fired is the middle of its .fis range, as in MATLAB.
 
 Agreement with pyfuzzylite (its `abs_tolerance` set to 0: by default it ignores firing strengths
-below 1e-5) is tested on the shipped rule base and MATLAB's tipper (triangles, trapezoids,
-Gaussians, OR, don't care) to 1e-15 of the output range; other set types, NOT, weights and the
-sum norms are written by fuzzylite's names but not yet checked against it.
+below 1e-5) is tested on the shipped rule base, MATLAB's tipper and random systems of every set
+type, NOT in antecedents, weights, OR and every norm both engines share, to 1e-15 of the output
+range. NOT in a consequent means something else to fuzzylite, and is refused.
 """
 
 from __future__ import annotations
@@ -69,6 +69,9 @@ def fll_text(system: FuzzySystem, comments: Iterable[str] = (), points: int = DE
                                        "cannot write a rule without a condition")
         if not conclusions:
             continue  # a rule without a consequent changes no output
+        if any(i < 0 for i in rule.consequent):
+            raise system.fail("rules", "a rule with NOT in its consequent: fuzzylite reads 'then u is not X' "
+                                       "otherwise than MATLAB's 1 - mu, so FLL cannot write it")
         weight = "" if rule.weight == 1.0 else f" with {format_number(rule.weight)}"
         joiner = " and " if rule.connection == AND else " or "
         out.append(f"  rule: if {joiner.join(conditions)} then {' and '.join(conclusions)}{weight}")
