@@ -163,3 +163,18 @@ def test_plcopen_project_is_valid_and_holds_the_blocks(tmp_path, scene_name, rea
             literals = [v.get("value") for v in variable.iter(f"{{{ns['p']}}}simpleValue")]
             assert f"{variable.get('name')} : " in gvl and ", ".join(literals) in gvl
     assert ("LREAL" in etree.tostring(document).decode()) != real
+
+
+def test_a_coarser_table_is_stated_with_its_error_bound(tmp_path):
+    result = export("plc", "paper_individual_gains", "--grid", "49", "--out", tmp_path / "plc", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    constants = read_global_constants((tmp_path / "plc" / "GVL_BwrFuzzySurface.st").read_text())
+    assert np.array(constants["SURFACE_VALUES"]).shape == (49, 49) and constants["SURFACE_CELLS"] == 48
+    bound = re.search(r"random inputs, is [\d.]+ \(([\d.]+) % of the output range\)",
+                      (tmp_path / "plc" / "README.md").read_text().replace("\n", " "))
+    assert bound and 0 < float(bound[1]) <= 0.5  # the bound on the default table holds here too
+    for args, words in ((("paper_individual_gains", "--grid", "50"), "--grid 50: grid_points must be k * 12 + 1"),
+                        (("pid_paper", "--grid", "49"), "type 'pid' has none")):
+        refused = export("plc", *args, "--out", tmp_path / "other", cwd=tmp_path)
+        assert refused.returncode == 2 and words in refused.stderr and refused.stderr.count("\n") == 1
+        assert not (tmp_path / "other").exists()

@@ -13,14 +13,11 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
 from tqdm import tqdm
 
-from bwr_twin.control.fuzzy import FuzzySurface, skfuzzy_compute
+from bwr_twin.control.fuzzy import FuzzySurface, surface_error
 from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.shipped import RULE_BASES
-
-BLOCK = 5_000  # points a skfuzzy call: its memory grows with points x rules x output samples
 
 
 def main() -> None:
@@ -31,19 +28,10 @@ def main() -> None:
     args = parser.parse_args()
     rule_base = RuleBase.from_toml(RULE_BASES / "paper_table2.toml")
     surface = FuzzySurface.load(rule_base, grid_points=args.grid)
-    rng = np.random.default_rng(args.seed)
-    e = rng.uniform(*rule_base.e_range, args.points)
-    ec = rng.uniform(*rule_base.ec_range, args.points)
-    largest, squares, started = 0.0, 0.0, time.perf_counter()
-    with tqdm(total=args.points, unit=" points", desc="skfuzzy") as progress:
-        for start in range(0, args.points, BLOCK):
-            part = slice(start, start + BLOCK)
-            difference = surface.evaluate(e[part], ec[part]) - skfuzzy_compute(rule_base, e[part], ec[part])
-            largest = max(largest, float(np.abs(difference).max()))
-            squares += float(np.sum(difference**2))
-            progress.update(len(difference))
+    started = time.perf_counter()
+    with tqdm(total=args.points, unit=" points", desc="skfuzzy") as bar:
+        largest, rms = surface_error(surface, args.points, args.seed, bar.update)
     width = rule_base.output_range[1] - rule_base.output_range[0]
-    rms = (squares / args.points) ** 0.5
     print(f"{args.points:,} random inputs, a {surface.values.shape[0]} x {surface.values.shape[0]} grid, "
           f"in {time.perf_counter() - started:.0f} s")
     print(f"largest difference {largest:.5f} ({100 * largest / width:.3f} % of the output range), "

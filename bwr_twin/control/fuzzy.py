@@ -295,6 +295,26 @@ class FuzzySurface:
         return out
 
 
+def surface_error(surface: FuzzySurface, points: int, seed: int = 0, progress=None) -> tuple[float, float]:
+    """The largest and the RMS difference of `surface` from skfuzzy's inference at `points` random
+    inputs over the universes (in the output universe); `progress(n)` after each block."""
+    rule_base = surface.rule_base
+    rng = np.random.default_rng(seed)
+    e, ec = rng.uniform(*rule_base.e_range, points), rng.uniform(*rule_base.ec_range, points)
+    largest = squares = 0.0
+    for start in range(0, points, _ERROR_BLOCK):
+        part = slice(start, start + _ERROR_BLOCK)
+        difference = surface.evaluate(e[part], ec[part]) - skfuzzy_compute(rule_base, e[part], ec[part])
+        largest = max(largest, float(np.abs(difference).max()))
+        squares += float(np.sum(difference**2))
+        if progress is not None:
+            progress(len(difference))
+    return largest, (squares / points) ** 0.5
+
+
+_ERROR_BLOCK = 5_000  # points a skfuzzy call: its memory grows with points x rules x output samples
+
+
 @numba.njit(cache=True)
 def surface_at(kernel, x: float, y: float) -> float:  # pragma: no cover - compiled
     """FLC(x, y) of a surface's `kernel` = (coefficients, e0, scale_e, ec0, scale_ec, cells):

@@ -23,6 +23,8 @@ def main(argv: list[str] | None = None) -> int:
     plc.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
     plc.add_argument("--out", required=True, type=Path, help="output directory (must not exist)")
     plc.add_argument("--real", action="store_true", help="REAL (32-bit) instead of LREAL, for PLCs without LREAL")
+    plc.add_argument("--grid", type=int, help="grid points per input of a fuzzy control surface's table (the "
+                     "twin's by default, so that the block equals it); the README states the error bound")
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
     args = parser.parse_args(argv)
     return exit_status(lambda: _plc(args))
@@ -34,7 +36,7 @@ def _plc(args) -> int:
     from bwr_twin.shipped import find_scene
 
     scene = load_scene(find_scene(args.scene))
-    for path in export_plc(scene, args.out, real=args.real, overwrite=args.overwrite):
+    for path in export_plc(scene, args.out, real=args.real, grid=args.grid, overwrite=args.overwrite):
         print(path)
     return 0
 
