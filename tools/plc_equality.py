@@ -21,7 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from st_python import load_block, read_global_constants  # noqa: E402
+from st_python import forces_on, load_exported  # noqa: E402
 
 from bwr_twin.config.scene import load_scene  # noqa: E402
 from bwr_twin.export.plc import export_plc  # noqa: E402
@@ -33,16 +33,7 @@ DEFAULT = ("pid_paper", "computed_torque_paper", "paper_individual_gains", "comp
 
 def exported_forces(scene, result, folder: Path, real: bool) -> np.ndarray:
     export_plc(scene, folder, real=real)
-    constants = {}
-    for global_list in folder.glob("GVL_*.st"):
-        constants |= read_global_constants(global_list.read_text())
-    block = load_block(next(folder.glob("FB_*.st")).read_text(), constants)()
-    references = [result.q_desired, result.qd_desired] + ([result.qdd_desired] if constants else [])
-    forces = np.empty_like(result.drive_force_command)
-    for k in range(len(result.time)):
-        block(list(result.q_measured[k]), list(result.qd_measured[k]), *(list(x[k]) for x in references))
-        forces[k] = block.force
-    return forces
+    return forces_on(load_exported(folder), result)
 
 
 def main() -> None:

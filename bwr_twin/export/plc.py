@@ -18,8 +18,8 @@ import functools
 from pathlib import Path
 
 from bwr_twin.config.scene import Scene
+from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
 from bwr_twin.errors import SceneError
-from bwr_twin.control.fuzzy import FuzzySurface, surface_error
 from bwr_twin.export.blocks import computed_torque_block, fuzzy_model_block, machine_globals, pid_block, surface_globals
 from bwr_twin.export.plcopen import project_xml
 from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, block_text, globals_text
@@ -85,9 +85,10 @@ def _fuzzy_model(scene: Scene, believed: Machine, grid: int | None,
                  notes: list[str]) -> tuple[Block, list[GlobalConstants]]:
     settings = scene.controller.settings
     rule_base = load_rule_base(settings.rule_base)
-    surface = FuzzySurface.load(rule_base)  # the table the twin's controller reads
-    if grid is not None:
-        surface = _surface_on(rule_base, grid, surface.values.shape[0], notes)
+    if grid is None:
+        surface = FuzzySurface.load(rule_base)  # the table the twin's controller reads
+    else:
+        surface = _surface_on(rule_base, grid, default_grid_points(rule_base), notes)
     _, e0, scale_e, ec0, scale_ec, _ = surface.kernel
     block = fuzzy_model_block(FUZZY_MODEL_BLOCK, settings.input_scale_e, settings.input_scale_ec, settings.output_gain,
                               settings.acceleration_feedforward, scene.path.name)

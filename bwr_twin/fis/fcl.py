@@ -165,8 +165,7 @@ class _Tokens:
         self.at = 0
 
     def fail(self, what: str) -> SceneError:
-        line = self.items[min(self.at, len(self.items) - 1)][2] if self.items else 1
-        return SceneError(f"{self.path}:{line}: {what}")
+        return SceneError(f"{self.path}:{self.line()}: {what}")
 
     def peek(self) -> str:
         return self.items[self.at][1].upper() if self.at < len(self.items) else ""
