@@ -1,10 +1,12 @@
 """Export a scene's controller for the engineer's tools.
 
     python -m bwr_twin.export plc pid_paper --out plc/pid_paper
+    python -m bwr_twin.export fmu pid_paper --out reclaimer.fmu
 
-Writes the controller as IEC 61131-3 Structured Text into DIR (bwr_twin.export.plc). DIR must not
-exist, or be an export the twin wrote and --overwrite be given; a bad scene exits with status 2 and
-one line on stderr, and nothing is written.
+`plc` writes the controller as IEC 61131-3 Structured Text into DIR (bwr_twin.export.plc). DIR must
+not exist, or be an export the twin wrote and --overwrite be given. `fmu` writes one run of the
+scene as an FMI 2.0 co-simulation FMU (bwr_twin.export.fmu), replacing only an FMU the twin wrote.
+A bad scene exits with status 2 and one line on stderr, and nothing is written.
 """
 
 from __future__ import annotations
@@ -26,8 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     plc.add_argument("--grid", type=int, help="grid points per input of a fuzzy control surface's table (the "
                      "twin's by default, so that the block equals it); the README states the error bound")
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
+    fmu = commands.add_parser("fmu", help="one run of the scene as an FMI 2.0 co-simulation FMU")
+    fmu.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
+    fmu.add_argument("--out", required=True, type=Path, help="the .fmu file to write (one the twin wrote is "
+                     "replaced)")
     args = parser.parse_args(argv)
-    return exit_status(lambda: _plc(args))
+    return exit_status(lambda: {"plc": _plc, "fmu": _fmu}[args.command](args))
 
 
 def _plc(args) -> int:
@@ -38,6 +44,15 @@ def _plc(args) -> int:
     scene = load_scene(find_scene(args.scene))
     for path in export_plc(scene, args.out, real=args.real, grid=args.grid, overwrite=args.overwrite):
         print(path)
+    return 0
+
+
+def _fmu(args) -> int:
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.export.fmu import export_fmu
+    from bwr_twin.shipped import find_scene
+
+    print(export_fmu(load_scene(find_scene(args.scene)), args.out))
     return 0
 
 

@@ -3,10 +3,11 @@
 Every directory the twin writes (a run, a batch) holds a marker file, `.bwr_twin`, saying what
 it is. Every file it writes carries its writer's mark in one fixed place and form, which a file
 the twin did not write does not hold by chance (`written_by`): the first line of a .fis, .toml or
-.fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER *)`; a PNG has a text chunk `Software`
-of exactly WRITER; an SVG's leading metadata has WRITER as its creator, a PDF's document
-information as its Creator; an HTML export's <head> opens with the generator tag. Text that
-merely mentions the writer anywhere else does not count. `check_output` is asked before any work
+.fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER
+*)`; a PNG has a text chunk `Software` of exactly WRITER; an SVG's leading metadata has WRITER as
+its creator, a PDF's document information as its Creator; an HTML export's <head> opens with the
+generator tag; an FMU's zip archive comment is exactly WRITER. Text that merely mentions the
+writer anywhere else does not count. `check_output` is asked before any work
 starts and again just before anything is replaced, so that a refusal costs nothing and loses
 nothing.
 """
@@ -17,6 +18,7 @@ import json
 import os
 import re
 import struct
+import zipfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -27,6 +29,9 @@ RESUMABLE = ("batch", "tuning")  # kinds of output that the same command continu
 BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
 HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an HTML file's <head>
 HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
+FMU_WRITER = "bwr_twin.export fmu"  # an FMU's zip archive comment
+# The single files the twin writes, by kind of output: (suffix, what marks them as the twin's).
+_FILE_KINDS = {"export": (".html", "bwr_twin.replay"), "fmu": (".fmu", FMU_WRITER)}
 _HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
 COMMENT_SIGNS = {".fis": "%", ".toml": "#", ".fll": "#", ".fcl": "(*"}  # the text files the twin writes, by suffix
 _COMMENT_ENDS = {".fcl": " *)"}  # where a comment must be closed on its line
@@ -46,6 +51,8 @@ def picture_metadata(writer: str, suffix: str) -> dict[str, str]:
 def written_by(path: Path, writer: str) -> bool:
     """Whether the file `path` holds `writer`'s mark in its place (see the module's docstring)."""
     suffix = path.suffix.lower()
+    if suffix == ".fmu":
+        return _zip_comment(path) == writer.encode()
     try:
         with path.open("rb") as f:
             data = f.read() if suffix == ".pdf" else f.read(_HEAD_WITHIN)
@@ -66,6 +73,15 @@ def written_by(path: Path, writer: str) -> bool:
         head = data.find(b"<head>")
         return head >= 0 and data.startswith(HTML_GENERATOR.format(writer).encode(), head + len(b"<head>"))
     return False
+
+
+def _zip_comment(path: Path) -> bytes | None:
+    """The archive comment of a zip file (an FMU), or None if it is not one."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return archive.comment
+    except (OSError, zipfile.BadZipFile):
+        return None
 
 
 def _png_text(data: bytes) -> dict[bytes, bytes]:
@@ -127,24 +143,25 @@ def check_output(path: Path, kind: str, *, overwrite: bool = False, inputs: Iter
         source = source.resolve()
         if source == target or target in source.parents:
             raise BwrError(f"{path}: is an input of this command ({source}); {option} must name another path")
-    if path.exists() and not path.is_dir() and kind != "export":
+    single_file = kind in _FILE_KINDS
+    if path.exists() and not path.is_dir() and not single_file:
         raise BwrError(f"{path}: exists and is not a folder the twin wrote; {option} must name a folder")
-    if kind == "export":
-        _check_export(path, option)
+    if single_file:
+        _check_file(path, *_FILE_KINDS[kind], option)
     elif path.exists():
         _check_folder(path, kind, overwrite, option)
-    _check_writable(path.parent if kind == "export" or not path.exists() else path, option)
+    _check_writable(path.parent if single_file or not path.exists() else path, option)
 
 
-def _check_export(path: Path, option: str) -> None:
-    if path.suffix.lower() != ".html":
-        raise BwrError(f"{path}: {option} must name an .html file")
+def _check_file(path: Path, suffix: str, writer: str, option: str) -> None:
+    if path.suffix.lower() != suffix:
+        raise BwrError(f"{path}: {option} must name an {suffix} file")
     if path.is_dir():
-        raise BwrError(f"{path}: is a folder; {option} must name an .html file")
+        raise BwrError(f"{path}: is a folder; {option} must name an {suffix} file")
     if not path.parent.is_dir():
         raise BwrError(f"{path}: the folder {path.parent} does not exist")
     if path.exists():
-        if not written_by(path, "bwr_twin.replay"):
+        if not written_by(path, writer):
             raise BwrError(f"{path}: exists and was not exported by the twin; it is left alone, "
                            f"choose another {option}")
 

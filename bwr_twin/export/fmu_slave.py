@@ -1,0 +1,260 @@
+"""The reclaimer as an FMI 2.0 co-simulation slave: one run of a scene, the importer the controller.
+
+`python -m bwr_twin.export fmu` packs this file into the FMU with the scene (resources/scene.toml and
+the files it reads); pythonfmu's binary loads it in the importing tool's Python, where `bwr_twin`
+is installed. The machine is `bwr_twin.serve.twin.Twin`, the same one the OPC UA server serves, so
+the FMU, the server and an in-process loop give one PID the same encoders, bit for bit.
+
+Variables (their units and meanings in `VARIABLES`), named as the OPC UA address space names them:
+- inputs `<Axis>.DriveSetpoint` (N, N m), held over the periods a step advances;
+- outputs per axis: encoder position and velocity, the reference's position, velocity and
+  acceleration, the drive force applied, the limit switch; `ReclaimRate` where the scene digs;
+- parameters read once, on leaving initialisation: the disturbance seed, amplitudes and hold time,
+  and the encoders' resolution;
+- `ControlPeriod`: a communication step is a whole number of these, anything else is refused.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import gc
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from xml.etree.ElementTree import Element, SubElement
+
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.default_experiment import DefaultExperiment
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+SCENE_FILE = "scene.toml"  # in the FMU's resources, beside the files it reads
+AXES = ("Travel", "Slew", "Luff")
+STEP_TOLERANCE = 1e-9  # relative: a step this close to a whole number of periods counts as one
+
+# FMI 2.0 unit definitions (fmi2Unit): the SI base-unit exponents of each unit the variables carry.
+UNITS = {
+    "m": {"m": 1}, "rad": {"rad": 1}, "s": {"s": 1},
+    "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2},
+    "N": {"kg": 1, "m": 1, "s": -2}, "N.m": {"kg": 1, "m": 2, "s": -2},
+    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600},
+}
+
+
+@dataclass(frozen=True)
+class Signal:
+    """One variable per axis (`per_axis`) or of the machine: its name, unit (linear, angular) and meaning."""
+
+    name: str
+    unit: tuple[str, str] | str | None
+    meaning: str
+    per_axis: bool = True
+
+
+OUTPUTS = (
+    Signal("EncoderPosition", ("m", "rad"), "encoder position, quantised to the scene's resolution"),
+    Signal("EncoderVelocity", ("m/s", "rad/s"), "encoder velocity, as the scene's encoders give it"),
+    Signal("ReferencePosition", ("m", "rad"), "the path's position at the step's end"),
+    Signal("ReferenceVelocity", ("m/s", "rad/s"), "the path's velocity at the step's end"),
+    Signal("ReferenceAcceleration", ("m/s2", "rad/s2"), "the path's acceleration at the step's end"),
+    Signal("DriveApplied", ("N", "N.m"), "drive force applied over the last period (within the drive's rating)"),
+)
+SWITCHES = Signal("AtLimit", None, "limit switch: the joint at or beyond its operating envelope or end stop")
+RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, as the belt scale sees it", False)
+SETPOINT = Signal("DriveSetpoint", ("N", "N.m"), "drive force the controller commands, held over the step")
+# Scene keys an importer may set before initialisation, each (FMI name, scene key, axis index or None, unit).
+PARAMETERS = (
+    ("Seed", "simulation.seed", None, None, "seed of the disturbance forces' random stream"),
+    *((f"{axis}.DisturbanceAmplitude", "disturbance.amplitude", i, ("N", "N.m")[i > 0],
+       "amplitude of the uniform random disturbance force") for i, axis in enumerate(AXES)),
+    ("DisturbanceHoldTime", "disturbance.hold_time", None, "s", "how long each random disturbance is held"),
+    *((f"{axis}.EncoderResolution", "encoders.resolution", i, ("m", "rad")[i > 0],
+       "the encoder's count, what its position is quantised to") for i, axis in enumerate(AXES)),
+)
+
+
+def _keep_library_loaded(unzipped: Path) -> None:
+    """Mark pythonfmu's library in this FMU as never to be unloaded (Linux: RTLD_NODELETE).
+
+    Importers unload an FMU's library after fmi2FreeInstance; pythonfmu's runs Python, and the
+    modules the model imported (MuJoCo, numba, their threads) outlive the instance, so an unloaded
+    library can corrupt the heap when the process exits. Kept loaded, it is released with the process.
+    """
+    if not hasattr(os, "RTLD_NODELETE"):
+        return  # Windows and macOS keep their own rules; the crash was seen on Linux
+    for library in (unzipped / "binaries").glob("linux64/*.so"):
+        ctypes.CDLL(str(library), mode=os.RTLD_NOW | os.RTLD_NOLOAD | os.RTLD_NODELETE)
+
+
+def axis_unit(signal: Signal, index: int) -> str | None:
+    """The unit of a per-axis signal on axis `index` (0 travel: linear; slew and luff: angular)."""
+    return signal.unit[0 if index == 0 else 1] if isinstance(signal.unit, tuple) else signal.unit
+
+
+class BwrReclaimer(Fmi2Slave):
+    """One run of the packed scene, stepped a whole number of control periods at a time."""
+
+    author = "bwr_twin"
+    description = "Bucket wheel reclaimer (travel, slew, luff) under drive forces from the importer"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        from bwr_twin.config.scene import load_scene  # the importer's bwr_twin
+
+        self._scene_path = Path(self.resources) / SCENE_FILE
+        _keep_library_loaded(Path(self.resources).parent)
+        self._base = load_scene(self._scene_path)
+        self._values = {name: self._scene_value(key, index) for name, key, index, _, _ in PARAMETERS}
+        self._setpoint = [0.0, 0.0, 0.0]
+        self._build()
+        self.modelName = "BwrReclaimer"
+        self.default_experiment = DefaultExperiment(0.0, self._twin.samples * self._twin.period, self._twin.period)
+        self._units: dict[str, str] = {}
+        self._reals: dict[int, Real] = {}
+        self._register()
+
+    # -- the variables --------------------------------------------------------------------------
+
+    def _register(self) -> None:
+        for i, axis in enumerate(AXES):
+            self._real(f"{axis}.{SETPOINT.name}", axis_unit(SETPOINT, i), SETPOINT.meaning, Fmi2Causality.input,
+                       getter=lambda i=i: self._setpoint[i], setter=lambda v, i=i: self._set_drive(i, v))
+        for signal in OUTPUTS:
+            for i, axis in enumerate(AXES):
+                self._real(f"{axis}.{signal.name}", axis_unit(signal, i), signal.meaning, Fmi2Causality.output,
+                           getter=lambda n=signal.name, i=i: self._latest[n][i])
+        for i, axis in enumerate(AXES):
+            self.register_variable(Boolean(f"{axis}.{SWITCHES.name}", causality=Fmi2Causality.output,
+                                           variability=Fmi2Variability.discrete, description=SWITCHES.meaning,
+                                           getter=lambda i=i: bool(self._twin.reading[SWITCHES.name][i])))
+        if self._base.stockpile is not None:
+            self._real(RECLAIM_RATE.name, RECLAIM_RATE.unit, RECLAIM_RATE.meaning, Fmi2Causality.output,
+                       getter=lambda: float(self._twin.reading["ReclaimRate"]))
+        self.register_variable(Integer("PeriodsLeft", causality=Fmi2Causality.output,
+                                       variability=Fmi2Variability.discrete, description="control periods left on the path; 0 at its end",
+                                       getter=lambda: int(self._twin.periods_left)))
+        self._real("ControlPeriod", "s", "the control period: a communication step is a whole number of them",
+                   Fmi2Causality.calculatedParameter, variability=Fmi2Variability.fixed,
+                   initial=Fmi2Initial.calculated, getter=lambda: self._twin.period)
+        for name, _, _, unit, meaning in PARAMETERS:
+            setter = lambda v, name=name: self._values.__setitem__(name, v)  # noqa: E731 - read on leaving init
+            if unit is None:
+                self.register_variable(Integer(name, causality=Fmi2Causality.parameter,
+                                               variability=Fmi2Variability.fixed, description=meaning,
+                                               getter=lambda name=name: int(self._values[name]), setter=setter))
+            else:
+                self._real(name, unit, meaning, Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
+                           getter=lambda name=name: float(self._values[name]), setter=setter)
+
+    def _real(self, name: str, unit: str | None, meaning: str, causality: Fmi2Causality, **options) -> None:
+        described = f"{meaning}, {unit}" if unit else meaning
+        variable = Real(name, causality=causality, description=described, **options)
+        self.register_variable(variable)
+        self._reals[variable.value_reference] = variable
+        if unit:
+            self._units[name] = unit
+
+    # pythonfmu's get_real and set_real check each variable's type in Python, a few tenths of a
+    # microsecond a variable: as much as a control period's physics for twelve outputs. The
+    # Reals are looked up directly; anything else goes to pythonfmu, which names the bad reference.
+
+    def get_real(self, vrs):
+        try:
+            return [self._reals[vr].getter() for vr in vrs]
+        except KeyError:
+            return super().get_real(vrs)
+
+    def set_real(self, vrs, values):
+        try:
+            for vr, value in zip(vrs, values):
+                self._reals[vr].setter(value)
+        except KeyError:
+            super().set_real(vrs, values)
+
+    def to_xml(self, model_options=None) -> Element:
+        """pythonfmu's modelDescription.xml with what FMI 2.0 asks and pythonfmu 0.7 leaves out:
+        the unit of every Real and their definitions, and `ModelStructure/InitialUnknowns`."""
+        root = super().to_xml(model_options or {})
+        definitions = Element("UnitDefinitions")
+        for name in sorted(set(self._units.values())):
+            exponents = dict(UNITS[name])
+            factor = exponents.pop("factor", None)
+            attributes = {k: str(v) for k, v in exponents.items()} | ({"factor": repr(factor)} if factor else {})
+            SubElement(SubElement(definitions, "Unit", name=name), "BaseUnit", attributes)
+        root.insert(list(root).index(root.find("CoSimulation")) + 1, definitions)
+        for element in root.find("ModelVariables"):
+            if element.get("name") in self._units:
+                element.find("Real").set("unit", self._units[element.get("name")])
+        # An output or calculated parameter computed in initialisation is an initial unknown (FMI 2.0, 2.2.8).
+        unknowns = [index for index, v in enumerate(self.vars.values(), start=1)
+                    if v.causality in (Fmi2Causality.output, Fmi2Causality.calculatedParameter)]
+        initial = SubElement(root.find("ModelStructure"), "InitialUnknowns")
+        for index in unknowns:
+            SubElement(initial, "Unknown", index=str(index))
+        return root
+
+    # -- the run --------------------------------------------------------------------------------
+
+    def _scene_value(self, key: str, index: int | None):
+        table, name = key.split(".")
+        value = getattr(getattr(self._base, table), name)
+        return value if index is None else value[index]
+
+    def _build(self) -> None:
+        """A fresh run of the scene with the parameters as they are now."""
+        from bwr_twin.config.scene import load_scene
+        from bwr_twin.serve.twin import Twin
+
+        overrides: dict[str, object] = {}
+        for name, key, index, _, _ in PARAMETERS:
+            if index is None:
+                overrides[key] = self._values[name]
+            else:
+                overrides.setdefault(key, list(self._scene_value(key, None)))[index] = float(self._values[name])
+        self._twin = Twin(load_scene(self._scene_path, overrides))
+        self._setpoint = [0.0, 0.0, 0.0]
+        self._read_outputs()
+
+    def _read_outputs(self) -> None:
+        """The outputs as Python floats, once a step rather than once a get."""
+        self._latest = {signal.name: self._twin.reading[signal.name].tolist() for signal in OUTPUTS}
+
+    def _set_drive(self, axis: int, value: float) -> None:
+        self._setpoint[axis] = float(value)
+
+    def exit_initialization_mode(self):
+        self._build()  # the parameters as the importer left them
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        twin = self._twin
+        periods = step_size / twin.period
+        whole = round(periods)
+        if whole < 1 or abs(periods - whole) > STEP_TOLERANCE * whole:
+            return self._refuse(f"a communication step of {step_size!r} s is not a whole number of control "
+                                f"periods ({twin.period!r} s); step by n x {twin.period!r} s, n >= 1")
+        if abs(current_time - twin.k * twin.period) > STEP_TOLERANCE * max(1.0, current_time):
+            return self._refuse(f"the step starts at t = {current_time!r} s, the machine is at "
+                                f"t = {twin.k * twin.period!r} s; steps follow each other without gaps")
+        if whole > twin.periods_left:
+            return self._refuse(f"a step of {whole} control periods passes the path's end at "
+                                f"t = {twin.samples * twin.period:g} s ({twin.periods_left} periods left)")
+        for _ in range(whole):
+            twin.advance(self._setpoint)
+            if twin.failure is not None:
+                return self._refuse(f"the run diverged: {twin.failure}")
+        self._read_outputs()
+        return True
+
+    def _refuse(self, message: str) -> bool:
+        self.log(message, Fmi2Status.error)
+        return False
+
+    def terminate(self):
+        # The machine (its MuJoCo batch and threads) goes now, not whenever the collector finds
+        # the cycle the variables' getters make with this instance.
+        self._twin = None
+        gc.collect()
+
+    def reset(self):
+        self._build()
+

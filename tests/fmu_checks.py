@@ -1,0 +1,82 @@
+"""FMPy sessions on an FMU the twin exported, run as their own process by tests/test_fmu.py (an
+importer's process: it loads and unloads pythonfmu's library as Simulink or OMSimulator would).
+
+    python tests/fmu_checks.py FMU reset PERIODS      traces before and after fmi2Reset, as JSON
+    python tests/fmu_checks.py FMU bad-step           a step of 1.5 periods, then a whole one
+
+Each prints one JSON line; FMPy's logger prints the FMU's messages before it.
+"""
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "fmu_pid.py"
+_spec = importlib.util.spec_from_file_location("fmu_pid", EXAMPLE)
+fmu_pid = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(fmu_pid)
+
+
+def open_fmu(path: str):
+    description = read_model_description(path)
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=extract(path),
+                    modelIdentifier=description.coSimulation.modelIdentifier, instanceName="checks")
+    fmu.instantiate(loggingOn=True)  # FMPy's default logger prints the FMU's messages to stdout
+    return fmu, refs
+
+
+def initialise(fmu) -> None:
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+
+
+def pid_trace(fmu, refs, periods: int) -> list:
+    """The example's PID for `periods`: the encoder positions it read, (periods, 3)."""
+    axes = fmu_pid.AXES
+    measured = [refs[f"{a}.{n}"] for n in ("EncoderPosition", "EncoderVelocity", "ReferencePosition",
+                                            "ReferenceVelocity") for a in axes]
+    period = fmu.getReal([refs["ControlPeriod"]])[0]
+    pid, trace = fmu_pid.Pid(period), []
+    for k in range(periods):
+        values = np.array(fmu.getReal(measured))
+        fmu.setReal([refs[f"{a}.DriveSetpoint"] for a in axes], list(pid(*values.reshape(4, 3))))
+        fmu.doStep(currentCommunicationPoint=k * period, communicationStepSize=period)
+        trace.append(values[:3].tolist())
+    return trace
+
+
+def main(path: str, check: str, *arguments: str) -> None:
+    fmu, refs = open_fmu(path)
+    initialise(fmu)
+    if check == "reset":
+        periods = int(arguments[0])
+        first = pid_trace(fmu, refs, periods)
+        fmu.reset()
+        initialise(fmu)
+        result = {"first": first, "after_reset": pid_trace(fmu, refs, periods)}
+    elif check == "bad-step":
+        period = fmu.getReal([refs["ControlPeriod"]])[0]
+        try:
+            fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.5 * period)
+            refused = None
+        except Exception as exc:  # FMPy raises FMICallException with the status
+            refused = str(exc)
+        fmu.setReal([refs["Luff.DriveSetpoint"]], [490500.0])
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=2 * period)  # the machine is unchanged
+        result = {"refused": refused, "periods_left_after": fmu.getInteger([refs["PeriodsLeft"]])[0]}
+    else:
+        raise SystemExit(f"unknown check {check!r}")
+    fmu.terminate()
+    fmu.freeInstance()
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
