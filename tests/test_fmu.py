@@ -156,7 +156,7 @@ def test_bad_export_requests_get_one_line_and_leave_files_alone(case, short_scen
     foreign.write_bytes(b"an FMU the twin did not write")
     out, scene, expected = {
         "not_fmu": (tmp_path / "reclaimer.zip", short_scene, "must name an .fmu file"),
-        "foreign_file": (foreign, short_scene, "was not exported by the twin; it is left alone"),
+        "foreign_file": (foreign, short_scene, "was not written by the twin; it is left alone"),
         "no_scene": (tmp_path / "r.fmu", tmp_path / "missing.toml", "scene file not found"),
     }[case]
     done = python("-m", "bwr_twin.export", "fmu", scene, "--out", out, check=False)

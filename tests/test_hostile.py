@@ -119,7 +119,7 @@ REFUSALS = [
     ("export-not-html", "replay", lambda t: ["short.toml", "--export", "notes.txt"], None,
      r"notes.txt: --export must name an \.html file"),
     ("export-over-foreign-html", "replay", lambda t: ["short.toml", "--export", _foreign_html(t)], None,
-     r"page.html: exists and was not exported by the twin"),
+     r"page.html: exists and was not written by the twin"),
     ("export-onto-a-folder", "replay", lambda t: ["short.toml", "--export", _folder(t, "view.html")], None,
      r"view.html: is a folder"),
     ("export-missing-folder", "replay", lambda t: ["short.toml", "--export", t / "nope" / "a.html"], None,

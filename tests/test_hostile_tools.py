@@ -141,7 +141,7 @@ REFUSALS = [
      r"notes.png: exists and was not written by bwr_twin.fis"),
     ("export-over-html-mentioning-the-tag", "replay",
      lambda t, r: ["short.toml", "--export", notes(t, "notes.html")],
-     r"notes.html: exists and was not exported by the twin"),
+     r"notes.html: exists and was not written by the twin"),
     # 10. Runaway work before any estimate
     ("compare-1e8-seeds", "compare",
      lambda t, r: ["short.toml", "--controllers", "short.toml", SCENES / "pid_paper.toml", "--seeds", 100_000_000,

@@ -3,7 +3,10 @@ the server in its own process, on a free loopback port, on the short path of con
 
 A PID written here drives the twin over the wire exactly as it drives the same run in-process;
 two sessions of the same scene read the same encoders; the watchdog stops silent PLCs; users
-and units are what docs/opcua.md promises; bad arguments get one line.
+and units are what docs/opcua.md promises; bad arguments get one line. The address space is
+typed as the companion specifications type machines: analog items with their ranges, the
+Machinery identification and states, alarms a SCADA client subscribes to, a NodeSet2 file that
+loads into another server, and users who log in with a certificate.
 """
 
 from __future__ import annotations
@@ -19,11 +22,13 @@ import time
 
 import numpy as np
 import pytest
-from asyncua import Client, ua
-from conftest import ROOT, write_short_scene
+from asyncua import Client, Node, ua
+from conftest import PAPER_MJCF, ROOT, unrated_paper_mjcf, write_short_scene
 
 from bwr_twin.config.scene import load_scene
-from bwr_twin.serve.address_space import AXIS_VARIABLES, MACHINE_VARIABLES, METHODS, NAMESPACE_URI, unit_of
+from bwr_twin.model.machine import Machine
+from bwr_twin.serve.address_space import (AXIS_VARIABLES, MACHINE_VARIABLES, METHODS, NAMESPACE_URI, node_path,
+                                          unit_of)
 from bwr_twin.serve.security import hash_password
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.lockstep import Lockstep
@@ -33,6 +38,7 @@ STARTUP_TIMEOUT = 40.0  # s: imports, the scene, asyncua's standard address spac
 CALL_TIMEOUT = 30.0  # s: any one client session below
 PID_PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
 USER, PASSWORD = "plc", "s3cret"
+EVENT_TIMEOUT = 10.0  # s: an alarm event reaches a subscriber within a publishing interval, on a busy machine
 
 
 def free_port() -> int:
@@ -140,6 +146,37 @@ class Plc:
 
     async def step(self, periods: int = 1):
         return await self.call("Step", ua.Variant(periods, ua.VariantType.UInt32))
+
+
+class AlarmEvents:
+    """A subscription to the events of one alarm type on Objects/Reclaimer, as a SCADA client
+    makes it; `next()` waits for the next event, as its fields by name."""
+
+    def __init__(self):
+        self.queue: asyncio.Queue = asyncio.Queue()
+
+    def event_notification(self, event) -> None:  # asyncua's subscription handler
+        self.queue.put_nowait({k: v for k, v in vars(event).items() if k not in event.internal_properties})
+
+    @classmethod
+    async def subscribe(cls, plc: Plc, event_type: int, notifier: Node | None = None) -> AlarmEvents:
+        """Events of `event_type` from `notifier` (default: the Reclaimer)."""
+        events = cls()
+        subscription = await plc.client.create_subscription(20, events)
+        await subscription.subscribe_events(notifier or plc.reclaimer, event_type)
+        return events
+
+    async def next(self) -> dict:
+        return await asyncio.wait_for(self.queue.get(), EVENT_TIMEOUT)
+
+
+MACHINERY = "Reclaimer.MachineryBuildingBlocks"
+
+
+async def item_state(plc: Plc) -> str:
+    """The reclaimer's MachineryItemState, by its CurrentState's node id."""
+    node = plc.client.get_node(ua.NodeId(f"{MACHINERY}.MachineryItemState.CurrentState", plc.ns))
+    return (await node.read_value()).Text
 
 
 class Pid:
@@ -375,6 +412,283 @@ def test_engineering_units_are_declared_on_every_variable(servers):
         assert found[key] == unit, key
 
 
+def test_clients_of_the_documented_node_ids_still_read_and_call(servers):
+    """docs/opcua.md's node ids (`ns=<index>;s=` and the browse path with dots) and the units'
+    property ids: typing the variables changed none of them."""
+    url = servers["lockstep"].ready()
+    documented = [node_path(v.name) for v in MACHINE_VARIABLES] + [
+        node_path(v.name, axis) for v in AXIS_VARIABLES for axis in AXES]
+
+    async def session():
+        async with client(url) as connection:
+            ns = await connection.get_namespace_index(NAMESPACE_URI)
+            nodes = [connection.get_node(f"ns={ns};s={path.replace('/', '.')}") for path in documented]
+            values = await connection.read_values(nodes)
+            reclaimer = connection.get_node(f"ns={ns};s=Reclaimer")
+            await reclaimer.call_method(connection.get_node(f"ns={ns};s=Reclaimer.Reset"))
+            stepped_to = await reclaimer.call_method(connection.get_node(f"ns={ns};s=Reclaimer.Step"),
+                                                     ua.Variant(2, ua.VariantType.UInt32))
+            unit = await connection.get_node(
+                f"ns={ns};s=Reclaimer.Travel.EncoderPosition.EngineeringUnits").read_value()
+            names = [(await n.read_browse_name()).Name for n in nodes]
+            return values, stepped_to, unit, names
+
+    values, stepped_to, unit, names = run(session())
+    assert len(values) == len(MACHINE_VARIABLES) + 3 * len(AXIS_VARIABLES) and None not in values
+    assert names == [path.rsplit("/", 1)[1] for path in documented]
+    assert stepped_to == pytest.approx(0.02) and unit.DisplayName.Text == "m"
+
+
+async def analog_variables(connection: Client, ns: int) -> dict[str, dict]:
+    """Every variable under Objects/Reclaimer whose data type is Double, by browse path: its type
+    definition and its properties' values by name."""
+    found = {}
+
+    async def walk(node, path):
+        for child in await node.get_children(refs=ua.ObjectIds.HierarchicalReferences):
+            name = (await child.read_browse_name()).Name
+            if await child.read_node_class() == ua.NodeClass.Variable:
+                if await child.read_data_type() == ua.NodeId(ua.ObjectIds.Double):
+                    properties = {(await p.read_browse_name()).Name: await p.read_value()
+                                  for p in await child.get_properties()}
+                    found[f"{path}/{name}"] = {"type": await child.read_type_definition(), **properties}
+            else:
+                await walk(child, f"{path}/{name}")
+
+    await walk(connection.get_node(ua.NodeId("Reclaimer", ns)), "Reclaimer")
+    return found
+
+
+def test_every_analog_variable_is_an_analog_item_with_its_range(servers, short_scene):
+    """A browse of every variable finds each Double an AnalogUnitType with its EngineeringUnits and
+    an EURange, finite and not empty; the ranges are the MJCF's (the paper machine's end stops,
+    rated speeds and drive ratings) and the run's (path, period)."""
+    url = servers["lockstep"].ready()
+
+    async def session():
+        async with client(url) as connection:
+            return await analog_variables(connection, await connection.get_namespace_index(NAMESPACE_URI))
+
+    analog = run(session())
+    assert len(analog) == 3 * 7 + 3  # seven Doubles per axis, SimTime, ControlPeriod, ReclaimRate
+    for path, found in analog.items():
+        assert found["type"] == ua.NodeId(ua.ObjectIds.AnalogUnitType), path
+        assert "EngineeringUnits" in found, path
+        low, high = found["EURange"].Low, found["EURange"].High
+        assert np.isfinite([low, high]).all() and low < high, (path, low, high)
+
+    machine = Machine(load_scene(short_scene).machine.mjcf)
+    mass, gravity = machine.dynamics.at(np.zeros(3), np.zeros(3))
+    expected = {
+        "Reclaimer/Luff/EncoderPosition": (-0.28, 0.28),  # the end stops
+        "Reclaimer/Slew/ReferencePosition": (-1.63, 1.63),
+        "Reclaimer/Travel/EncoderVelocity": (-0.5, 0.5),  # rated_speed_travel
+        "Reclaimer/Luff/ReferenceVelocity": (-0.002, 0.002),
+        "Reclaimer/Luff/DriveSetpoint": (-5.6e5, 1.1e6),  # forcerange
+        "Reclaimer/Travel/DriveApplied": (-3.2e3, 3.2e3),
+        "Reclaimer/Luff/ReferenceAcceleration": ((-5.6e5 - gravity[2]) / mass[2, 2], (1.1e6 - gravity[2]) / mass[2, 2]),
+        "Reclaimer/SimTime": (0.0, 20.0),  # the short path
+        "Reclaimer/ControlPeriod": (0.0, 0.01),
+        "Reclaimer/ReclaimRate": (0.0, 1.0),  # no stockpile: the documented span
+    }
+    for path, (low, high) in expected.items():
+        assert (analog[path]["EURange"].Low, analog[path]["EURange"].High) == pytest.approx((low, high)), path
+
+
+def test_a_machine_without_ratings_gets_the_documented_finite_ranges(tmp_path):
+    """The paper's machine stripped of its drive ratings and rated speeds: the ranges follow the
+    documented rules (docs/opcua.md), never infinite: drive forces that give ±1 m/s² (rad/s²)
+    from rest at home against gravity, accelerations ±1, speeds the end stops' span in 60 s."""
+    import re
+
+    from bwr_twin.serve.ranges import eu_ranges
+
+    unrated = unrated_paper_mjcf(tmp_path)
+    unrated.write_text(re.sub(r'<numeric name="rated_speed_\w+"[^>]*/>', "", unrated.read_text()))
+    scene = write_short_scene(tmp_path, edit=lambda text: text.replace(f'"{PAPER_MJCF}"', f'"{unrated}"'))
+    loop = Lockstep([load_scene(scene)], nthread=1)
+    assert np.isinf(loop.machine.drive_limits).all() and np.isinf(loop.machine.rated_speed).all()
+    ranges = eu_ranges(loop)
+    assert all(np.isfinite(r).all() and r[0] < r[1] for r in ranges.values())
+    mass, gravity = loop.machine.dynamics.at(np.zeros(3), np.zeros(3))
+    assert ranges["DriveSetpoint", "luff"] == pytest.approx((gravity[2] - mass[2, 2], gravity[2] + mass[2, 2]))
+    assert ranges["DriveApplied", "travel"] == pytest.approx((-mass[0, 0], mass[0, 0]))  # no gravity on the rail
+    assert ranges["ReferenceAcceleration", "luff"] == pytest.approx((-1.0, 1.0))
+    assert ranges["EncoderVelocity", "slew"] == pytest.approx((-2 * 1.63 / 60, 2 * 1.63 / 60))
+    assert ranges["EncoderPosition", "travel"] == (-26.0, 26.0)  # the end stops stay the MJCF's
+
+
+def test_the_reclaimer_is_a_machinery_machine_with_identification_and_states(servers, short_scene):
+    """A client finds the reclaimer in Objects/Machines, its Identification typed
+    MachineIdentificationType (under MachineryItemIdentificationType), the nameplate from the
+    MJCF, and the MachineryItemState following the lockstep run: NotExecuting, Executing from
+    the first Step, NotExecuting at the path's end."""
+    url = servers["lockstep"].ready()
+
+    async def session():
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            ns = plc.ns
+            machines = await connection.nodes.objects.get_child(f"{ns}:Machines")
+            listed = [(await n.read_browse_name()).Name for n in await machines.get_children()]
+            identification = await plc.reclaimer.get_child(f"{ns}:Identification")
+            type_node = connection.get_node(await identification.read_type_definition())
+            chain = [(await type_node.read_browse_name()).Name]
+            for _ in range(2):
+                (type_node,) = await type_node.get_referenced_nodes(ua.ObjectIds.HasSubtype, ua.BrowseDirection.Inverse)
+                chain.append((await type_node.read_browse_name()).Name)
+            nameplate = {(await p.read_browse_name()).Name: await p.read_value()
+                         for p in await identification.get_properties()}
+            blocks = await plc.reclaimer.get_child(f"{ns}:MachineryBuildingBlocks")
+            add_ins = {(await n.read_browse_name()).Name for n in await blocks.get_children(refs=ua.ObjectIds.HasAddIn)}
+            mode_node = connection.get_node(ua.NodeId(f"{MACHINERY}.MachineryOperationMode.CurrentState", ns))
+            mode = await mode_node.read_value()
+            await plc.call("Reset")
+            states = [await item_state(plc)]
+            await plc.step(1)
+            current = f"{MACHINERY}.MachineryItemState.CurrentState"
+            state_id = await connection.get_node(ua.NodeId(f"{current}.Id", ns)).read_value()
+            number = await connection.get_node(ua.NodeId(f"{current}.Number", ns)).read_value()
+            executing = connection.get_node(state_id)
+            state_number = await (await executing.get_child("0:StateNumber")).read_value()
+            states.append(await item_state(plc))
+            await plc.step(await plc.value("PeriodsLeft"))
+            states.append(await item_state(plc))
+            await plc.call("Reset")
+            return (listed, chain, nameplate, add_ins, mode.Text, states, (await executing.read_browse_name()).Name,
+                    number, state_number)
+
+    listed, chain, nameplate, add_ins, mode, states, executing, number, state_number = run(session())
+    assert "Reclaimer" in listed
+    assert chain == ["MachineIdentificationType", "MachineryItemIdentificationType", "FolderType"]
+    texts = Machine(load_scene(short_scene).machine.mjcf).identification
+    assert nameplate["Manufacturer"].Text == texts["manufacturer"] == "bwr_twin"
+    assert nameplate["Model"].Text == texts["model"] and nameplate["SerialNumber"] == texts["serial_number"]
+    assert nameplate["ProductInstanceUri"] == f"urn:bwr_twin:bwr:{texts['serial_number']}"
+    assert add_ins == {"Identification", "MachineryItemState", "MachineryOperationMode"}
+    assert mode == "Processing"
+    assert states == ["NotExecuting", "Executing", "NotExecuting"]
+    assert (executing, number, state_number) == ("Executing", 3, 3)  # OPC 40001-1's StateNumber
+
+
+LUFF_PUSH = (0.0, 0.0, -1e7)  # N, N m, N m: the luff driven down at its rating, into its envelope's bottom
+LIMIT_PERIODS = 200  # 2 s: the luff falls through its 15 degrees in under one
+
+
+def test_a_limit_raises_an_alarm_a_scada_client_receives(servers):
+    """Subscribed to OffNormalAlarmType events on Objects/Reclaimer, a client receives the luff's
+    limit switch closing when a large setpoint drives the luff down in lockstep, and opening
+    again when Reset brings it back; a client of the Server object receives the same event."""
+    url = servers["lockstep"].ready()
+
+    async def session():
+        async with client(url) as connection:
+            plc = await Plc.attach(connection)
+            await plc.call("Reset")
+            alarms = await AlarmEvents.subscribe(plc, ua.ObjectIds.OffNormalAlarmType)
+            on_server = await AlarmEvents.subscribe(plc, ua.ObjectIds.OffNormalAlarmType, connection.nodes.server)
+            await plc.set_drives(LUFF_PUSH)
+            await plc.step(LIMIT_PERIODS)
+            at_limit = (await plc.read("AtLimit"))[0]
+            raised = await alarms.next()
+            assert (await on_server.next())["EventId"] == raised["EventId"]
+            await plc.call("Reset")
+            cleared = await alarms.next()
+            luff, switch = ua.NodeId("Reclaimer.Luff", plc.ns), ua.NodeId("Reclaimer.Luff.AtLimit", plc.ns)
+            return at_limit, raised, cleared, luff, switch
+
+    at_limit, raised, cleared, luff, luff_switch = run(session())
+    assert at_limit.tolist() == [False, False, True]
+    assert raised["EventType"] == ua.NodeId(ua.ObjectIds.OffNormalAlarmType)
+    assert (raised["SourceNode"], raised["SourceName"], raised["InputNode"]) == (luff, "Luff", luff_switch)
+    assert (raised["ActiveState/Id"], raised["Retain"], raised["Severity"]) == (True, True, 700)
+    sim_time = float(raised["Message"].Text.split("at SimTime ")[1].split(" s")[0])
+    assert raised["Message"].Text.startswith("Luff: limit switch closed") and 0 < sim_time < LIMIT_PERIODS * 0.01
+    assert (cleared["ActiveState/Id"], cleared["Retain"], cleared["NodeId"]) == (False, False, raised["NodeId"])
+
+
+async def browse_tree(objects: Node, ns: int) -> dict:
+    """Browse path -> (node class, node id, type definition, EURange) of every node of namespace
+    `ns` below `objects` by hierarchical references, and of the namespace's types these are
+    instances of (under "types"), with their supertypes of the namespace and their children.
+    Names and ids are (in `ns`, text): two servers that number the namespace differently compare."""
+    tree, types = {}, []
+
+    def name(qualified: ua.QualifiedName) -> tuple[bool, str]:
+        return qualified.NamespaceIndex == ns, qualified.Name
+
+    def identity(node_id: ua.NodeId) -> tuple[bool, object]:
+        return node_id.NamespaceIndex == ns, node_id.Identifier
+
+    async def walk(node: Node, path: tuple) -> None:
+        for ref in await node.get_references(ua.ObjectIds.HierarchicalReferences, ua.BrowseDirection.Forward,
+                                             includesubtypes=True):
+            child, child_path = Node(node.session, ref.NodeId), (*path, name(ref.BrowseName))
+            if ref.NodeId.NamespaceIndex != ns or child_path in tree:
+                continue
+            eu_range = await child.read_value() if ref.BrowseName.Name == "EURange" else None
+            tree[child_path] = (ref.NodeClass, identity(ref.NodeId), identity(ref.TypeDefinition),
+                                eu_range and (eu_range.Low, eu_range.High))
+            if ref.TypeDefinition.NamespaceIndex == ns and ref.TypeDefinition not in types:
+                types.append(ref.TypeDefinition)
+            await walk(child, child_path)
+
+    await walk(objects, ())
+    for type_id in types:  # the list grows by the supertypes of the namespace as they are found
+        type_node = Node(objects.session, type_id)
+        (supertype,) = await type_node.get_referenced_nodes(ua.ObjectIds.HasSubtype, ua.BrowseDirection.Inverse)
+        path = ((None, "types"), name(await type_node.read_browse_name()))
+        tree[path] = (await type_node.read_node_class(), identity(type_id), identity(supertype.nodeid), None)
+        if supertype.nodeid.NamespaceIndex == ns and supertype.nodeid not in types:
+            types.append(supertype.nodeid)
+        await walk(type_node, path)
+    return tree
+
+
+def test_the_nodeset_file_loads_into_a_fresh_server_with_the_same_tree(servers, short_scene, tmp_path):
+    """--nodeset writes the address space and exits; asyncua's importer loads the file into a
+    fresh server, which then has the served browse tree: the same paths, node classes, node ids,
+    types and EURanges. The file is not replaced without --overwrite, nor a file the twin did not
+    write at all."""
+    from asyncua import Server
+
+    nodeset = tmp_path / "reclaimer.xml"
+    written = subprocess.run(serve_command(short_scene, "--nodeset", str(nodeset)), cwd=ROOT, env=environment(),
+                             capture_output=True, text=True, timeout=120)
+    assert written.returncode == 0, written.stderr
+    assert written.stdout.startswith("nodeset: ") and written.stdout.endswith(f" written to {nodeset}\n")
+    url = servers["lockstep"].ready()
+
+    async def trees():
+        async with client(url) as connection:
+            served = await browse_tree(connection.nodes.objects, await connection.get_namespace_index(NAMESPACE_URI))
+        fresh = Server()
+        await fresh.init()
+        await fresh.import_xml(str(nodeset))
+        loaded = await browse_tree(fresh.nodes.objects, await fresh.get_namespace_index(NAMESPACE_URI))
+        return served, loaded
+
+    served, loaded = run(trees())
+    assert loaded == served
+    paths = {tuple(name for _, name in path) for path in served}
+    assert ("Reclaimer", "Luff", "DriveSetpoint", "EURange") in paths
+    assert ("Machines", "Reclaimer", "Identification", "SerialNumber") in paths
+    assert ("types", "MachineryItemState_StateMachineType", "Executing", "StateNumber") in paths
+    ranges = [value[2] for path, value in served.items() if path[-1] == (False, "EURange")]
+    assert len(ranges) == 2 * (3 * 7 + 3) and all(ranges)  # every analog item, under Objects and under Machines
+
+    again = subprocess.run(serve_command(short_scene, "--nodeset", str(nodeset)), cwd=ROOT, env=environment(),
+                           capture_output=True, text=True, timeout=120)
+    assert again.returncode == 2 and again.stderr == (f"error: {nodeset}: already exists; choose another "
+                                                      "--nodeset or pass --overwrite\n")
+    foreign = tmp_path / "foreign.xml"
+    foreign.write_text("<?xml version='1.0' encoding='utf-8'?>\n<UANodeSet/>\n")
+    refused = subprocess.run(serve_command(short_scene, "--nodeset", str(foreign), "--overwrite"), cwd=ROOT,
+                             env=environment(), capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and refused.stderr == (f"error: {foreign}: exists and was not written "
+                                                          "by the twin; it is left alone, choose another --nodeset\n")
+    assert foreign.read_text() == "<?xml version='1.0' encoding='utf-8'?>\n<UANodeSet/>\n"
+
 def test_the_watchdog_stops_the_drives_of_a_silent_plc(servers):
     hold = (0.0, 0.0, 490500.0)  # N, N m, N m: the luff's holding torque
     server = servers["guarded"]
@@ -383,28 +697,41 @@ def test_the_watchdog_stops_the_drives_of_a_silent_plc(servers):
         async with client(server.ready(), PASSWORD) as connection:
             plc = await Plc.attach(connection)
             await plc.call("Reset")
+            alarms = await AlarmEvents.subscribe(plc, ua.ObjectIds.TripAlarmType)
             assert await plc.value("Mode") == "realtime"
             await plc.set_drives(hold)
             await plc.call("Start")
+            executing = await item_state(plc)
             for _ in range(30):  # 0.3 s of a PLC writing every period
                 await plc.set_drives(hold)
                 await asyncio.sleep(0.01)
             alive = await plc.value("WatchdogTripped"), (await plc.read("DriveApplied"))[0]
-            await asyncio.sleep(0.6)  # silent for 60 periods, three times the watchdog's
-            tripped = await plc.value("WatchdogTripped")
+            trip = await alarms.next()  # silent from now on: 20 periods later the drives are cut
+            tripped, state = await plc.value("WatchdogTripped"), await item_state(plc)
             setpoints, applied = await plc.read("DriveSetpoint", "DriveApplied")
             with pytest.raises(ua.uaerrors.BadInvalidState):  # latched: a fresh write does not clear it
                 await plc.set_drives(hold)
             running = await plc.value("Running")
             await plc.call("Reset")
-            return alive, tripped, setpoints, applied, running, await plc.value("WatchdogTripped")
+            cleared = await alarms.next()
+            return (alive, tripped, setpoints, applied, running, await plc.value("WatchdogTripped"),
+                    (executing, state, await item_state(plc)), trip, cleared)
 
-    (was_tripped, applied_alive), tripped, setpoints, applied, running, after_reset = run(session())
+    ((was_tripped, applied_alive), tripped, setpoints, applied, running, after_reset, states, trip,
+     cleared) = run(session())
     assert not was_tripped and applied_alive[2] == pytest.approx(hold[2])
     assert tripped and running
     assert (setpoints == 0).all() and (applied == 0).all()
     assert not after_reset
     assert server.wait_for("watchdog: no DriveSetpoint write for 20 control periods", 5.0)
+    # Machinery: the clock ran, the trip took the machine out of service, Reset brought it back.
+    assert states == ("Executing", "OutOfService", "NotExecuting")
+    # The trip is an alarm on the Reclaimer, raised and then cleared by Reset.
+    assert (trip["ActiveState/Id"], trip["Retain"], trip["Severity"]) == (True, True, 900)
+    assert trip["SourceName"] == "Reclaimer" and trip["ConditionName"] == "WatchdogAlarm"
+    assert trip["Message"].Text.startswith("watchdog tripped at SimTime ")
+    assert (cleared["ActiveState/Id"], cleared["Retain"]) == (False, False)
+    assert cleared["NodeId"] == trip["NodeId"]  # the same condition
 
 
 def test_writes_need_a_user_when_users_are_configured(servers, users_file):
@@ -561,9 +888,9 @@ def test_a_bench_reclaim_is_served_with_the_plans_reference(tmp_path):
 
 # -- refused at start: users, certificates, endpoints -------------------------------------------
 
-def certificate_pair(folder, name: str, uri: str | None = "urn:bwr_twin:serve"):
-    """folder/NAME_cert.pem and folder/NAME_key.pem: a self-signed RSA certificate naming `uri`
-    in its subjectAltName (none if None), and its key."""
+def certificate_pair(folder, name: str, uri: str | None = "urn:bwr_twin:serve", common_name: str = "bwr_twin"):
+    """folder/NAME_cert.pem and folder/NAME_key.pem: a self-signed RSA certificate of
+    `common_name` naming `uri` in its subjectAltName (none if None), and its key."""
     import datetime
 
     from cryptography import x509
@@ -572,7 +899,7 @@ def certificate_pair(folder, name: str, uri: str | None = "urn:bwr_twin:serve"):
     from cryptography.x509.oid import NameOID
 
     key = rsa.generate_private_key(public_exponent=65537, key_size=2048)
-    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "bwr_twin")])
+    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, common_name)])
     builder = (x509.CertificateBuilder().subject_name(subject).issuer_name(subject).public_key(key.public_key())
                .serial_number(1).not_valid_before(datetime.datetime(2020, 1, 1))
                .not_valid_after(datetime.datetime(2040, 1, 1)))
@@ -599,6 +926,15 @@ def credentials(tmp_path_factory):
     files["cert"], files["key"] = certificate_pair(folder, "server")
     _, files["other key"] = certificate_pair(folder, "other")
     files["no URI cert"], files["no URI key"] = certificate_pair(folder, "bare", uri=None)
+    (folder / "empty").mkdir()
+    files["user certificates"] = users = folder / "trusted_users"
+    users.mkdir()
+    files["operator cert"], files["operator key"] = certificate_pair(users, "operator", uri=None,
+                                                                     common_name="operator")
+    files["stranger cert"], files["stranger key"] = certificate_pair(folder, "stranger", uri=None,
+                                                                     common_name="stranger")
+    (users / "operator_key.pem").rename(folder / "operator_key.pem")  # the server holds certificates only
+    files["operator key"] = folder / "operator_key.pem"
     return files
 
 
@@ -609,9 +945,13 @@ def test_a_matching_certificate_and_key_pass_the_start_checks(credentials):
 
 
 @pytest.mark.parametrize("case", ["no iterations", "years a login", "another's key", "no application URI",
-                                  "IPv6 unclosed", "IPv6 unbracketed", "IPv6 not an address"])
+                                  "IPv6 unclosed", "IPv6 unbracketed", "IPv6 not an address",
+                                  "user certificates without a server certificate", "no user certificates",
+                                  "a user certificate that is not one", "a user's key among the certificates",
+                                  "nodeset with --out"])
 def test_bad_credentials_and_endpoints_are_refused_in_one_line(case, short_scene, credentials):
     users = ["--users", str(credentials["good users"])]
+    server = ["--certificate", str(credentials["cert"]), "--private-key", str(credentials["key"])]
     endpoint = f"opc.tcp://127.0.0.1:{free_port()}"
     options, expected = {
         "no iterations": (["--users", str(credentials["no iterations"])],
@@ -635,6 +975,23 @@ def test_bad_credentials_and_endpoints_are_refused_in_one_line(case, short_scene
                              "opc.tcp://127.0.0.1:4840; an IPv6 address goes in brackets"),
         "IPv6 not an address": (["--endpoint", "opc.tcp://[::g]:4840"],
                                 "error: --endpoint opc.tcp://[::g]:4840: [::g] is not an IPv6 address"),
+        "user certificates without a server certificate": (
+            ["--user-certificates", str(credentials["user certificates"])],
+            f"error: --user-certificates {credentials['user certificates']}: needs --certificate and --private-key"),
+        "no user certificates": (
+            server + ["--user-certificates", str(credentials["cert"].parent / "empty")],
+            f"error: --user-certificates {credentials['cert'].parent / 'empty'}: holds no certificate (.pem, "),
+        "a user certificate that is not one": (
+            server + ["--user-certificates", str(credentials["good users"])],
+            f"error: --user-certificates {credentials['good users']}: not an X.509 certificate (PEM or DER)"),
+        "a user's key among the certificates": (
+            server + ["--user-certificates", str(credentials["operator key"])],
+            f"error: --user-certificates {credentials['operator key']}: holds a private key; the server needs the "
+            "users' certificates only"),
+        "nodeset with --out": (["--nodeset", str(credentials["cert"].parent / "a.xml"), "--out",
+                                str(credentials["cert"].parent / "run")],
+                               f"error: --nodeset {credentials['cert'].parent / 'a.xml'} writes the address space "
+                               "and serves nothing: --out does not apply"),
     }[case]
     result = subprocess.run(serve_command(short_scene, "--endpoint", endpoint, *options), cwd=ROOT,
                             env=environment(), capture_output=True, text=True, timeout=60)
@@ -708,6 +1065,53 @@ def test_a_secure_endpoint_with_a_matching_pair_serves_its_users(short_scene, cr
         status = server.stop()
     assert stepped_to == pytest.approx(0.01)
     assert "security policies: Basic256Sha256 SignAndEncrypt" in server.lines
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+
+
+def test_a_user_certificate_logs_in_and_one_not_trusted_is_refused(short_scene, credentials):
+    """--user-certificates: a client that identifies with a certificate of the trusted folder
+    (an X509IdentityToken, signed with its key) writes and steps; one with a certificate that is
+    not there is refused at activation; an anonymous session still only reads."""
+    client_cert, client_key = certificate_pair(credentials["cert"].parent, "client", uri="urn:freeopcua:client")
+    server = Launched(short_scene, "--user-certificates", str(credentials["user certificates"]), "--certificate",
+                      str(credentials["cert"]), "--private-key", str(credentials["key"]))
+    url = server.ready()
+
+    async def secure_client(user: str | None) -> Client:
+        connection = Client(url)
+        await connection.set_security_string(f"Basic256Sha256,SignAndEncrypt,{client_cert},{client_key}")
+        if user is not None:
+            await connection.load_client_certificate(str(credentials[f"{user} cert"]))
+            await connection.load_private_key(credentials[f"{user} key"])
+        return connection
+
+    async def activate(user: str) -> None:
+        async with await secure_client(user):
+            pass
+
+    async def session(user: str | None):
+        async with await secure_client(user) as connection:
+            plc = await Plc.attach(connection)
+            if user is None:
+                with pytest.raises(ua.uaerrors.BadUserAccessDenied):
+                    await plc.step(1)
+                return await plc.value("SimTime")
+            await plc.call("Reset")
+            await plc.set_drives((1.0, 2.0, 3.0))
+            return await plc.step(1), (await plc.read("DriveSetpoint"))[0]
+
+    try:
+        stepped_to, written = run(session("operator"))
+        with pytest.raises(ua.uaerrors.BadUserAccessDenied):  # at activation: no session at all
+            run(activate("stranger"))
+        run(activate("operator"))
+        read_anonymously = run(session(None))
+    finally:
+        status = server.stop()
+    assert stepped_to == pytest.approx(0.01) and written.tolist() == [1.0, 2.0, 3.0]
+    assert read_anonymously == pytest.approx(0.01)
+    assert (f"anonymous access: read only; writes and method calls need one of the 1 user certificate(s) of "
+            f"{credentials['user certificates']}") in server.lines
     assert status == 0 and "Traceback" not in server.stderr, server.stderr
 
 

@@ -27,6 +27,10 @@ from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Intege
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
+from bwr_twin.config.scene import load_scene
+from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.plant import mujoco_warnings
+
 SCENE_FILE = "scene.toml"  # in the FMU's resources, beside the files it reads
 AXES = ("Travel", "Slew", "Luff")
 STEP_TOLERANCE = 1e-9  # relative: a step this close to a whole number of periods counts as one
@@ -99,8 +103,6 @@ class BwrReclaimer(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        from bwr_twin.config.scene import load_scene  # the importer's bwr_twin
-
         self._scene_path = Path(self.resources) / SCENE_FILE
         _keep_library_loaded(Path(self.resources).parent)
         self._base = load_scene(self._scene_path)
@@ -202,9 +204,6 @@ class BwrReclaimer(Fmi2Slave):
 
     def _build(self) -> None:
         """A fresh run of the scene with the parameters as they are now."""
-        from bwr_twin.config.scene import load_scene
-        from bwr_twin.serve.twin import Twin
-
         overrides: dict[str, object] = {}
         for name, key, index, _, _ in PARAMETERS:
             if index is None:
@@ -238,10 +237,11 @@ class BwrReclaimer(Fmi2Slave):
         if whole > twin.periods_left:
             return self._refuse(f"a step of {whole} control periods passes the path's end at "
                                 f"t = {twin.samples * twin.period:g} s ({twin.periods_left} periods left)")
-        for _ in range(whole):
-            twin.advance(self._setpoint)
-            if twin.failure is not None:
-                return self._refuse(f"the run diverged: {twin.failure}")
+        with mujoco_warnings():  # MuJoCo's warnings become the run's failure, never the importer's console
+            for _ in range(whole):
+                twin.advance(self._setpoint)
+                if twin.failure is not None:
+                    return self._refuse(f"the run diverged: {twin.failure}")
         self._read_outputs()
         return True
 

@@ -37,6 +37,8 @@ WHEEL_BENCH_SHARE_KEY = "wheel_bench_share"
 WHEEL_CLEARANCE_KEY = "wheel_clearance"
 RAIL_CLEARANCE_KEY = "rail_clearance"
 RATED_SPEED_KEY = "rated_speed_{axis}"  # optional: without it, an axis has no rated speed (inf)
+# Optional `<custom><text>` entries naming the machine, as OPC 40001-1 identifies one (bwr_twin.serve).
+IDENTIFICATION_KEYS = ("manufacturer", "model", "serial_number")
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
@@ -125,6 +127,8 @@ class Machine:
         rail_clearance: half-width (m) of the strip beside the rail axis that the machine's
             carriage takes, where no stockpile may lie (0 if the file does not say).
         rated_speed: (3,) the drives' rated speeds in m/s and rad/s (inf where the file gives none).
+        identification: the file's `<custom><text>` entries of IDENTIFICATION_KEYS, key -> text
+            (only those it has); `name` the `<mujoco model=...>` name.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
@@ -154,6 +158,8 @@ class Machine:
         rail_clearance = self._numeric(RAIL_CLEARANCE_KEY)
         self.rail_clearance = float(rail_clearance[0]) if rail_clearance is not None else 0.0
         self.rated_speed = self._read_rated_speed()
+        self.identification = {key: text for key in IDENTIFICATION_KEYS if (text := self._text(key)) is not None}
+        self.name = self.model.names[:self.model.names.index(b"\0")].decode()
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
@@ -259,6 +265,15 @@ class Machine:
             return None
         adr, size = m.numeric_adr[n], m.numeric_size[n]
         return m.numeric_data[adr : adr + size].copy()
+
+    def _text(self, key: str) -> str | None:
+        """The text of `<custom><text name=key>`, or None if the file has none."""
+        m = self.model
+        n = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, key)
+        if n < 0:
+            return None
+        adr, size = m.text_adr[n], m.text_size[n]
+        return m.text_data[adr : adr + size].rstrip(b"\0").decode()
 
     def _read_envelope(self) -> np.ndarray:
         envelope = self.joint_range.copy()

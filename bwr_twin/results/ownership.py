@@ -6,8 +6,9 @@ the twin did not write does not hold by chance (`written_by`): the first line of
 .fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER
 *)`; a PNG has a text chunk `Software` of exactly WRITER; an SVG's leading metadata has WRITER as
 its creator, a PDF's document information as its Creator; an HTML export's <head> opens with the
-generator tag; an FMU's zip archive comment is exactly WRITER. Text that merely mentions the
-writer anywhere else does not count. `check_output` is asked before any work
+generator tag; an FMU's zip archive comment is exactly WRITER; an XML file's line after its
+declaration is `<!-- written by WRITER -->`. Text that merely mentions the writer anywhere else
+does not count. `check_output` is asked before any work
 starts and again just before anything is replaced, so that a refusal costs nothing and loses
 nothing.
 """
@@ -30,8 +31,11 @@ BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
 HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an HTML file's <head>
 HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
 FMU_WRITER = "bwr_twin.export fmu"  # an FMU's zip archive comment
-# The single files the twin writes, by kind of output: (suffix, what marks them as the twin's).
-_FILE_KINDS = {"export": (".html", "bwr_twin.replay"), "fmu": (".fmu", FMU_WRITER)}
+NODESET_WRITER = "bwr_twin.serve"  # a UA NodeSet2 file's comment after the XML declaration
+# The single files the twin writes, by kind of output: (suffix, what marks them as the twin's,
+# whether replacing one needs --overwrite).
+_FILE_KINDS = {"export": (".html", "bwr_twin.replay", False), "fmu": (".fmu", FMU_WRITER, False),
+               "nodeset": (".xml", NODESET_WRITER, True)}
 _HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
 COMMENT_SIGNS = {".fis": "%", ".toml": "#", ".fll": "#", ".fcl": "(*"}  # the text files the twin writes, by suffix
 _COMMENT_ENDS = {".fcl": " *)"}  # where a comment must be closed on its line
@@ -53,6 +57,8 @@ def written_by(path: Path, writer: str) -> bool:
     suffix = path.suffix.lower()
     if suffix == ".fmu":
         return _zip_comment(path) == writer.encode()
+    if suffix == ".xml":
+        return _xml_comment(path) == writer.encode()
     try:
         with path.open("rb") as f:
             data = f.read() if suffix == ".pdf" else f.read(_HEAD_WITHIN)
@@ -73,6 +79,22 @@ def written_by(path: Path, writer: str) -> bool:
         head = data.find(b"<head>")
         return head >= 0 and data.startswith(HTML_GENERATOR.format(writer).encode(), head + len(b"<head>"))
     return False
+
+
+def xml_mark(writer: str) -> str:
+    """The line right after the XML declaration of an XML file `writer` writes."""
+    return f"<!-- written by {writer} -->"
+
+
+def _xml_comment(path: Path) -> bytes | None:
+    """The writer named in an XML file's comment line right after its declaration, or None."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(_HEAD_WITHIN).removeprefix(b"\xef\xbb\xbf")
+    except OSError:
+        return None
+    found = re.match(rb"<\?xml[^>]*\?>\r?\n<!-- written by (.+?) -->\r?\n", head)
+    return found.group(1) if found else None
 
 
 def _zip_comment(path: Path) -> bytes | None:
@@ -147,13 +169,13 @@ def check_output(path: Path, kind: str, *, overwrite: bool = False, inputs: Iter
     if path.exists() and not path.is_dir() and not single_file:
         raise BwrError(f"{path}: exists and is not a folder the twin wrote; {option} must name a folder")
     if single_file:
-        _check_file(path, *_FILE_KINDS[kind], option)
+        _check_file(path, *_FILE_KINDS[kind], overwrite, option)
     elif path.exists():
         _check_folder(path, kind, overwrite, option)
     _check_writable(path.parent if single_file or not path.exists() else path, option)
 
 
-def _check_file(path: Path, suffix: str, writer: str, option: str) -> None:
+def _check_file(path: Path, suffix: str, writer: str, needs_overwrite: bool, overwrite: bool, option: str) -> None:
     if path.suffix.lower() != suffix:
         raise BwrError(f"{path}: {option} must name an {suffix} file")
     if path.is_dir():
@@ -162,8 +184,10 @@ def _check_file(path: Path, suffix: str, writer: str, option: str) -> None:
         raise BwrError(f"{path}: the folder {path.parent} does not exist")
     if path.exists():
         if not written_by(path, writer):
-            raise BwrError(f"{path}: exists and was not exported by the twin; it is left alone, "
+            raise BwrError(f"{path}: exists and was not written by the twin; it is left alone, "
                            f"choose another {option}")
+        if needs_overwrite and not overwrite:
+            raise BwrError(f"{path}: already exists; choose another {option} or pass --overwrite")
 
 
 def _check_folder(path: Path, kind: str, overwrite: bool, option: str) -> None:

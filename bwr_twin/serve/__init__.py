@@ -3,8 +3,14 @@ the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.m
 
     twin.py           the machine: one run, advanced a control period at a time
     address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
+    ranges.py         each analog variable's EURange, from the MJCF or a documented rule
+    machinery.py      OPC 40001-1: Objects/Machines, Identification, MachineryItemState, operation mode
+    alarms.py         limit switches and watchdog trips as alarm events on Objects/Reclaimer
+    nodes.py          typed nodes with the twin's node ids, which asyncua's shortcuts do not make
+    nodeset.py        --nodeset: the address space as a UA NodeSet2 file
     clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
     security.py       users file, password hashes, who may write; policies per endpoint
+    user_certificates.py  --user-certificates: users who log in with an X.509 certificate
     logins.py         password checks in a worker thread, before asyncua activates a session
     certificates.py   the certificate and key checked at start: a pair, naming the application URI
     announce.py       what the server prints it exposes

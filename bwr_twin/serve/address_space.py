@@ -3,7 +3,8 @@
 Every variable is one row of `MACHINE_VARIABLES` or `AXIS_VARIABLES`: its browse name, type,
 unit and meaning. The server publishes a variable from the value of the same name in the
 readings it is given (`AddressSpace.publish`), so a new machine-level variable is one row here
-and one value in the readings.
+and one value in the readings. A Double is an analog item of OPC UA Part 8 (AnalogUnitType,
+or AnalogItemType without a unit) with its EURange, given to `build` (bwr_twin.serve.ranges).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from datetime import datetime, timezone
 from asyncua import Node, Server, ua
 
 from bwr_twin.model.machine import AXES
+from bwr_twin.serve import nodes
 
 NAMESPACE_URI = "urn:bwr_twin:reclaimer"
 UNECE_URI = "http://www.opcfoundation.org/UA/units/un/cefact"  # OPC UA Part 8: UNECE Recommendation 20 codes
@@ -32,6 +34,9 @@ UNITS = {
     "s": ("SEC", "second"),
     "t/h": ("E18", "tonne per hour"),
 }
+# OPC UA Part 8's variable types of a Double with a physical meaning: with its unit (i=17497,
+# "AnalogUnitItemType" in some texts) or without (AnalogItemType); both carry EURange.
+ANALOG_UNIT_TYPE, ANALOG_ITEM_TYPE = ua.ObjectIds.AnalogUnitType, ua.ObjectIds.AnalogItemType
 LINEAR, ANGULAR = "linear", "angular"
 AXIS_KIND = {"travel": LINEAR, "slew": ANGULAR, "luff": ANGULAR}
 
@@ -118,22 +123,25 @@ def _initial(variant: ua.VariantType):
 class AddressSpace:
     """The twin's nodes on `server`, and the publishing of readings into them."""
 
-    def __init__(self, server: Server, namespace: int):
-        self.server, self.namespace = server, namespace
+    def __init__(self, server: Server, namespace: int, ranges: Mapping[tuple[str, str | None], tuple[float, float]]):
+        self.server, self.namespace, self.ranges = server, namespace, ranges
         self.nodes: dict[tuple[str, str | None], Node] = {}  # (variable, axis or None) -> node
+        self.objects: dict[str | None, Node] = {}  # axis -> its object; None -> Objects/Reclaimer
 
     @classmethod
-    async def build(cls, server: Server, methods: Mapping[str, Callable]) -> AddressSpace:
-        """Create Objects/Reclaimer with its variables and `methods` (name -> async handler)."""
-        space = cls(server, await server.register_namespace(NAMESPACE_URI))
+    async def build(cls, server: Server, methods: Mapping[str, Callable],
+                    ranges: Mapping[tuple[str, str | None], tuple[float, float]]) -> AddressSpace:
+        """Create Objects/Reclaimer with its variables and `methods` (name -> async handler);
+        `ranges`: the EURange (low, high) of every Double, by (variable, axis or None)."""
+        space = cls(server, await server.register_namespace(NAMESPACE_URI), ranges)
         ns = space.namespace
-        reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
-                                                          ua.QualifiedName("Reclaimer", ns))
+        space.objects[None] = reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
+                                                                                ua.QualifiedName("Reclaimer", ns))
         for variable in MACHINE_VARIABLES:
             await space._add_variable(reclaimer, variable, None)
         for axis in AXES:
-            folder = await reclaimer.add_object(ua.NodeId(f"Reclaimer.{axis_name(axis)}", ns),
-                                                ua.QualifiedName(axis_name(axis), ns))
+            space.objects[axis] = folder = await reclaimer.add_object(ua.NodeId(f"Reclaimer.{axis_name(axis)}", ns),
+                                                                      ua.QualifiedName(axis_name(axis), ns))
             for variable in AXIS_VARIABLES:
                 await space._add_variable(folder, variable, axis)
         step_argument = ua.Argument(Name="n", DataType=ua.NodeId(ua.ObjectIds.UInt32), ValueRank=-1,
@@ -151,16 +159,24 @@ class AddressSpace:
     async def _add_variable(self, parent: Node, variable: Variable, axis: str | None) -> None:
         ns = self.namespace
         node_id = node_path(variable.name, axis).replace("/", ".")
-        node = await parent.add_variable(ua.NodeId(node_id, ns), ua.QualifiedName(variable.name, ns),
-                                         _initial(variable.variant), variable.variant)
+        name = ua.QualifiedName(variable.name, ns)
         unit = unit_of(variable, axis)
+        if variable.variant == D:
+            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(0.0, D),
+                                            ANALOG_UNIT_TYPE if unit else ANALOG_ITEM_TYPE)
+        else:
+            node = await parent.add_variable(ua.NodeId(node_id, ns), name, _initial(variable.variant), variable.variant)
         meaning = f"{variable.meaning}, {unit}" if unit else variable.meaning
         description = ua.DataValue(ua.Variant(ua.LocalizedText(meaning)))
         await node.write_attribute(ua.AttributeIds.Description, description)
-        if unit:  # the standard property, browse name in namespace 0
+        if unit:  # the standard properties, browse names in namespace 0
             await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns),
                                     ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
                                     ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
+        if variable.variant == D:
+            low, high = self.ranges[variable.name, axis]
+            await nodes.add_property(node, ua.NodeId(f"{node_id}.EURange", ns), ua.QualifiedName("EURange", 0),
+                                     ua.Variant(ua.Range(Low=low, High=high)), data_type=ua.ObjectIds.Range)
         if variable.writable:
             await node.set_writable()
         self.nodes[variable.name, axis] = node

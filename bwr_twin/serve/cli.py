@@ -1,12 +1,14 @@
 """Serve one run of a scene over OPC UA: the twin is the machine, the client the PLC.
 
     python -m bwr_twin.serve SCENE [--endpoint opc.tcp://127.0.0.1:4840] [--realtime [--speed X] | --lockstep]
-        [--watchdog-periods N] [--users FILE [--certificate CERT --private-key KEY]]
+        [--watchdog-periods N] [--users FILE] [--user-certificates PATH] [--certificate CERT --private-key KEY]
         [--out DIR [--overwrite] [--no-plots]] [--model MJCF] [--seed N]
+    python -m bwr_twin.serve SCENE --nodeset FILE.xml [--overwrite]
 
 SCENE is a scene file, or the name of a shipped one. The address space, modes, watchdog and
-security are in docs/opcua.md. Bad input exits with status 2 and one line; Ctrl-C stops the
-server with status 130, SIGTERM with 0.
+security are in docs/opcua.md. --nodeset writes the address space as a UA NodeSet2 file and
+serves nothing. Bad input exits with status 2 and one line; Ctrl-C stops the server with
+status 130, SIGTERM with 0.
 """
 
 from __future__ import annotations
@@ -46,12 +48,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--users", type=Path,
                         help="users file (python -m bwr_twin.serve.passwd NAME makes a line): writes and method "
                         "calls need one of them; anonymous sessions read only")
+    parser.add_argument("--user-certificates", type=Path, metavar="PATH", help="trusted users' X.509 "
+                        "certificates (a folder of .pem/.crt/.cer/.der, or one file): their holders log in with "
+                        "them, as --users' users do with passwords; needs --certificate")
     parser.add_argument("--certificate", type=Path, help="server certificate (DER or PEM): Basic256Sha256, signed "
                         "and encrypted; needed, with --users, on any address but loopback")
     parser.add_argument("--private-key", type=Path, help="the certificate's private key (PEM)")
     parser.add_argument("--out", type=Path, help="write each completed path's results here, as bwr_twin.run does "
                         "(must not exist)")
-    parser.add_argument("--overwrite", action="store_true", help="replace --out, a run directory the twin wrote")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out, a run directory the twin wrote, "
+                        "or --nodeset, a file it wrote")
+    parser.add_argument("--nodeset", type=Path, metavar="FILE.xml", help="write the address space as a UA "
+                        "NodeSet2 file and exit, serving nothing")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures of --out")
     parser.add_argument("--model", help="machine MJCF replacing the scene's")
     parser.add_argument("--seed", type=int, help="disturbance seed replacing the scene's")
@@ -74,22 +82,33 @@ def _serve(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
     from bwr_twin.run import scene_overrides
     from bwr_twin.serve.announce import is_loopback
+    from bwr_twin.results.ownership import check_output
     from bwr_twin.serve.certificates import check_certificate
     from bwr_twin.serve.security import check_options, load_users
-    from bwr_twin.serve.server import APPLICATION_URI, Options, serve
+    from bwr_twin.serve.server import APPLICATION_URI, Options, export_nodeset, serve
+    from bwr_twin.serve.user_certificates import load_user_certificates
 
+    options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
+                      speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
+                      user_certificates=args.user_certificates, certificate=args.certificate,
+                      private_key=args.private_key, out=args.out, overwrite=args.overwrite, plots=not args.no_plots)
+    if args.nodeset is not None:
+        if args.out is not None:
+            raise ServeError(f"--nodeset {args.nodeset} writes the address space and serves nothing: --out does "
+                             "not apply")
+        scene = load_scene(scene_path, scene_overrides(args.model, args.seed))
+        check_output(args.nodeset, "nodeset", overwrite=args.overwrite, inputs=scene.input_files, option="--nodeset")
+        return asyncio.run(export_nodeset(scene, options, args.nodeset))
     check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
-                  private_key=args.private_key)
+                  private_key=args.private_key, user_certificates=args.user_certificates)
     if args.certificate is not None:
         check_certificate(args.certificate, args.private_key, APPLICATION_URI)
     _check_listenable(url, host, port)
     if args.users is not None:
         load_users(args.users)  # a bad line stops here, before any work
+    if args.user_certificates is not None:
+        load_user_certificates(args.user_certificates)
     scene = load_scene(scene_path, scene_overrides(args.model, args.seed))
-    options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
-                      speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
-                      certificate=args.certificate, private_key=args.private_key, out=args.out,
-                      overwrite=args.overwrite, plots=not args.no_plots)
     return asyncio.run(serve(scene, options))
 
 

@@ -19,6 +19,7 @@ from asyncua import ua
 
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
 from bwr_twin.serve.address_space import AddressSpace
+from bwr_twin.serve.machinery import item_state
 from bwr_twin.serve.twin import Twin
 
 YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a turn (real time: a pause as long)
@@ -48,6 +49,7 @@ class Clock:
         self.watchdog_periods = watchdog_periods
         self._log, self._on_done = log, on_done
         self.space: AddressSpace | None = None
+        self.listeners: list = []  # more publishers of the readings (the Machinery state, the alarms)
         self._lock = asyncio.Lock()  # one Step or Reset at a time
         self._task: asyncio.Task | None = None
         self._internal_write = False  # the server itself writes DriveSetpoint: not a PLC's write
@@ -62,13 +64,20 @@ class Clock:
     # -- publishing and writes ---------------------------------------------------------------
 
     def readings(self) -> dict[str, object]:
-        """Every published value by variable name (see address_space)."""
-        return {**self.twin.reading, "ControlPeriod": self.twin.period, "Running": self.running,
-                "Mode": self.mode, "WatchdogTripped": self.watchdog_tripped, "Overruns": self.overruns}
+        """Every published value by variable name (see address_space), and the MachineryItemState."""
+        twin = self.twin
+        state = item_state(mode=self.mode, running=self.running, started=twin.k > 0, done=twin.done,
+                           diverged=twin.failure is not None, tripped=self.watchdog_tripped)
+        return {**twin.reading, "ControlPeriod": twin.period, "Running": self.running, "Mode": self.mode,
+                "WatchdogTripped": self.watchdog_tripped, "Overruns": self.overruns, "MachineryItemState": state}
 
     async def publish(self, *, setpoint: bool = False) -> None:
-        """Publish the readings; with `setpoint`, the DriveSetpoint nodes too (after a Reset or trip)."""
-        await self.space.publish(self.readings())
+        """Publish the readings, with the limit switches that changed since the last time; with
+        `setpoint`, the DriveSetpoint nodes too (after a Reset or trip)."""
+        readings = {**self.readings(), "LimitSwitches": self.twin.take_limit_switches()}
+        await self.space.publish(readings)
+        for listener in self.listeners:
+            await listener.publish(readings)
         if setpoint:
             self._internal_write = True
             try:

@@ -3,11 +3,17 @@
 asyncua activates a session synchronously, and asks the user manager for the user inside that
 call: a PBKDF2 check there holds the whole server (other clients, the real-time clock, SIGTERM
 and Ctrl-C) for as long as it takes. The processor below sees an ActivateSession request first,
-has the user manager check its password in a worker thread (`PasswordUsers.verify`), and only
+has the user manager check its password in a worker thread (`Users.verify`), and only
 then hands the request to asyncua, whose `get_user` finds the verdict waiting.
+
+asyncua calls `get_user` with no user name both for an anonymous session on a secure channel
+(with the channel's client certificate) and for a user certificate (an X509IdentityToken): the
+processor says which it is, in `certificate_login`, while asyncua handles the request.
 """
 
 from __future__ import annotations
+
+from contextvars import ContextVar
 
 from asyncua import ua
 from asyncua.server import binary_server_asyncio
@@ -16,11 +22,20 @@ from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
 _ACTIVATE = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
 
+# True while asyncua activates a session whose user identity token is a certificate.
+certificate_login: ContextVar[bool] = ContextVar("certificate_login", default=False)
+
 
 class CheckingProcessor(UaProcessor):
     """asyncua's processor of one connection, with password checks done before activation."""
 
     async def process_message(self, seqhdr, body):
+        if _token(body.copy()) is ua.X509IdentityToken:
+            flag = certificate_login.set(True)  # this connection's task only
+            try:
+                return await super().process_message(seqhdr, body)
+            finally:
+                certificate_login.reset(flag)
         manager = self.iserver.user_manager
         login = self._login(body.copy()) if hasattr(manager, "verify") else None
         if login is None:
@@ -48,6 +63,17 @@ class CheckingProcessor(UaProcessor):
         except Exception:  # noqa: BLE001 - a malformed request is asyncua's to answer
             return None
         return (username, password) if isinstance(username, str) and isinstance(password, str) else None
+
+
+def _token(body) -> type | None:
+    """The type of the user identity token of an ActivateSession request, else None."""
+    try:
+        if nodeid_from_binary(body) != _ACTIVATE:
+            return None
+        struct_from_binary(ua.RequestHeader, body)
+        return type(struct_from_binary(ua.ActivateSessionParameters, body).UserIdentityToken)
+    except Exception:  # noqa: BLE001 - a malformed request is asyncua's to answer
+        return None
 
 
 def install_login_checks() -> None:

@@ -1,10 +1,11 @@
-"""Who may do what on the twin's server: user names and password hashes, and the rule that only
-an authenticated user writes setpoints or calls methods once users are configured.
+"""Who may do what on the twin's server: user names and password hashes, trusted user
+certificates (bwr_twin.serve.user_certificates), and the rule that only an authenticated user
+writes setpoints or calls methods once users are configured.
 
 A users file holds one `name:hash` line per user (blank lines and `#` comments allowed); the hash
 is `pbkdf2_sha256$ITERATIONS$SALT$DIGEST` (hex), made by `python -m bwr_twin.serve.passwd NAME`.
 Passwords are never stored. A check runs in a worker thread, one at a time
-(`PasswordUsers.verify`, called by `bwr_twin.serve.logins` before asyncua activates a session),
+(`Users.verify`, called by `bwr_twin.serve.logins` before asyncua activates a session),
 so that the event loop keeps serving clients and hearing signals meanwhile.
 """
 
@@ -22,7 +23,8 @@ from asyncua.server.user_managers import UserManager
 
 from bwr_twin.errors import BwrError
 from bwr_twin.textfile import read_text
-from bwr_twin.serve.logins import install_login_checks
+from bwr_twin.serve.logins import certificate_login, install_login_checks
+from bwr_twin.serve.user_certificates import load_user_certificates, trusted_user
 
 SCHEME = "pbkdf2_sha256"
 # The iterations a users file may ask for. The floor is OWASP's current recommendation for
@@ -94,16 +96,18 @@ def _hex(parts: list[str]) -> bool:
         return False
 
 
-class PasswordUsers(UserManager):
-    """Users of a users file may read, write and call; an anonymous session, if allowed, reads only.
+class Users(UserManager):
+    """Users of a users file, and holders of a trusted user certificate, may read, write and
+    call; an anonymous session, if allowed, reads only.
 
     asyncua asks `get_user` synchronously, in the event loop; `verify` computes its answer
     beforehand in a worker thread and leaves the verdict for it. Without one (a path asyncua takes
-    that `logins` does not see), `get_user` checks in place: bounded by MAX_ITERATIONS.
+    that `logins` does not see), `get_user` checks in place: bounded by MAX_ITERATIONS. A
+    certificate's signature asyncua has checked by then; whether it is trusted is a lookup.
     """
 
-    def __init__(self, users: dict[str, str]):
-        self.users = users
+    def __init__(self, users: dict[str, str], certificates: dict | None = None):
+        self.users, self.certificates = users, certificates or {}
         self._verdicts: dict[tuple[str, str], bool] = {}
         self._one_at_a_time = asyncio.Semaphore(1)  # a flood of logins queues; it never takes both cores
 
@@ -117,6 +121,9 @@ class PasswordUsers(UserManager):
         self._verdicts.pop((username, password), None)
 
     def get_user(self, iserver, username=None, password=None, certificate=None) -> User | None:
+        if certificate_login.get():  # an X509 token: `certificate` is the user's, its signature checked
+            name = trusted_user(self.certificates, certificate)
+            return User(role=UserRole.User, name=name) if name is not None else None
         if username is None:  # an anonymous token (on a secure channel `certificate` is the client's own)
             return User(role=UserRole.Anonymous)
         verdict = self._verdicts.pop((username, password), None)
@@ -146,30 +153,37 @@ class ReadOnlyAnonymous(PermissionRuleset):
 
 
 def check_options(*, url: str, loopback: bool, users_file: Path | None, certificate: Path | None,
-                  private_key: Path | None) -> None:
+                  private_key: Path | None, user_certificates: Path | None = None) -> None:
     """SecurityError if the options would serve an address other than loopback open, or name
     files that are not there; asked before any work starts."""
     if (certificate is None) != (private_key is None):
         raise SecurityError("--certificate and --private-key go together")
-    if not loopback and (users_file is None or certificate is None):
-        raise SecurityError(f"{url}: an endpoint other than loopback needs --users FILE and --certificate/"
-                            "--private-key (Basic256Sha256, signed and encrypted); refusing to serve it open")
+    if not loopback and ((users_file is None and user_certificates is None) or certificate is None):
+        raise SecurityError(f"{url}: an endpoint other than loopback needs --users FILE (or --user-certificates "
+                            "PATH) and --certificate/--private-key (Basic256Sha256, signed and encrypted); refusing "
+                            "to serve it open")
+    if user_certificates is not None and certificate is None:
+        raise SecurityError(f"--user-certificates {user_certificates}: needs --certificate and --private-key: a user "
+                            "logs in with a certificate by signing the server's (Basic256Sha256)")
     for option, path in (("--users", users_file), ("--certificate", certificate), ("--private-key", private_key)):
         if path is not None and not path.is_file():
             raise SecurityError(f"{option} {path}: no such file")
+    if user_certificates is not None and not user_certificates.exists():
+        raise SecurityError(f"--user-certificates {user_certificates}: no such file or folder")
 
 
 async def secure(server, *, url: str, loopback: bool, users_file: Path | None, certificate: Path | None,
-                 private_key: Path | None) -> tuple[list[str], str]:
+                 private_key: Path | None, user_certificates: Path | None = None) -> tuple[list[str], str]:
     """Set the server's security policies, identity tokens and permissions; return the policies'
     names and who may write, for the exposure text.
 
-    Loopback without users: no security, anyone on this machine writes. With users: anonymous
-    sessions read only. Any other address needs users and a certificate: Basic256Sha256 with
-    signing and encryption only, so that passwords and setpoints never travel in clear.
+    Loopback without users: no security, anyone on this machine writes. With users (names and
+    passwords, certificates, or both): anonymous sessions read only. Any other address needs
+    users and a certificate: Basic256Sha256 with signing and encryption only, so that passwords
+    and setpoints never travel in clear.
     """
     check_options(url=url, loopback=loopback, users_file=users_file, certificate=certificate,
-                  private_key=private_key)
+                  private_key=private_key, user_certificates=user_certificates)
     if certificate is not None:
         try:
             await server.load_certificate(str(certificate))
@@ -181,14 +195,21 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
         policies, names = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt], ["Basic256Sha256 SignAndEncrypt"]
     else:
         policies, names = [ua.SecurityPolicyType.NoSecurity], ["None (loopback only)"]
-    if users_file is None:
+    if users_file is None and user_certificates is None:
         server.set_security_policy(policies)
         server.set_identity_tokens([ua.AnonymousIdentityToken])
         return names, "anonymous access: read and write (no --users)"
-    users = load_users(users_file)
+    users = load_users(users_file) if users_file is not None else {}
+    trusted = load_user_certificates(user_certificates) if user_certificates is not None else {}
     install_login_checks()
-    server.iserver.set_user_manager(PasswordUsers(users))
+    server.iserver.set_user_manager(Users(users, trusted))
     server.set_security_policy(policies, permission_ruleset=ReadOnlyAnonymous())
-    server.set_identity_tokens([ua.AnonymousIdentityToken, ua.UserNameIdentityToken])
-    return names, (f"anonymous access: read only; writes and method calls need one of the {len(users)} "
-                   f"user(s) of {users_file}")
+    tokens, who = [ua.AnonymousIdentityToken], []
+    if users:
+        tokens.append(ua.UserNameIdentityToken)
+        who.append(f"one of the {len(users)} user(s) of {users_file}")
+    if trusted:
+        tokens.append(ua.X509IdentityToken)
+        who.append(f"one of the {len(trusted)} user certificate(s) of {user_certificates}")
+    server.set_identity_tokens(tokens)
+    return names, f"anonymous access: read only; writes and method calls need {' or '.join(who)}"

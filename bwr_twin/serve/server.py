@@ -17,8 +17,12 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import AXES
 from bwr_twin.serve import LOCKSTEP, ServeError
 from bwr_twin.serve.address_space import METHODS, NAMESPACE_URI, AddressSpace
+from bwr_twin.serve.alarms import Alarms
 from bwr_twin.serve.announce import exposure_lines, is_loopback
 from bwr_twin.serve.clock import Clock
+from bwr_twin.serve.machinery import Machinery
+from bwr_twin.serve.nodeset import write_nodeset
+from bwr_twin.serve.ranges import eu_ranges
 from bwr_twin.serve.results import RunWriter
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.twin import Twin
@@ -38,6 +42,7 @@ class Options:
     speed: float = 1.0
     watchdog_periods: int = 10
     users: Path | None = None
+    user_certificates: Path | None = None
     certificate: Path | None = None
     private_key: Path | None = None
     out: Path | None = None
@@ -64,13 +69,10 @@ async def serve(scene: Scene, options: Options) -> int:
     await server.set_application_uri(APPLICATION_URI)
     policies, access = await secure(server, url=options.url, loopback=is_loopback(options.host),
                                     users_file=options.users, certificate=options.certificate,
-                                    private_key=options.private_key)
+                                    private_key=options.private_key, user_certificates=options.user_certificates)
     clock = Clock(twin, mode=options.mode, speed=options.speed, watchdog_periods=options.watchdog_periods,
                   log=_say, on_done=writer)
-    clock.space = space = await AddressSpace.build(server, clock.methods())
-    for index, axis in enumerate(AXES):
-        server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
-    await clock.publish(setpoint=True)
+    space = await build_address_space(server, clock)
     try:
         await server.start()
     except OSError as exc:
@@ -92,6 +94,32 @@ async def serve(scene: Scene, options: Options) -> int:
     _say("server stopped")
     if interrupted:
         raise KeyboardInterrupt
+    return 0
+
+
+async def build_address_space(server: Server, clock: Clock) -> AddressSpace:
+    """The twin's nodes on `server`, typed: the contract's variables as analog items with their
+    ranges, the Machinery building blocks, the alarms; all published by `clock` from now on."""
+    twin = clock.twin
+    clock.space = space = await AddressSpace.build(server, clock.methods(), eu_ranges(twin.loop))
+    clock.listeners = [await Machinery.build(space, twin.loop.machine), await Alarms.build(space)]
+    for index, axis in enumerate(AXES):
+        server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
+    await clock.publish(setpoint=True)
+    return space
+
+
+async def export_nodeset(scene: Scene, options: Options, path: Path) -> int:
+    """`--nodeset`: write the address space `serve` would serve to `path` as a UA NodeSet2, and
+    serve nothing."""
+    logging.getLogger("asyncua").setLevel(logging.CRITICAL)
+    server = Server()
+    await server.init()
+    clock = Clock(Twin(scene), mode=options.mode, speed=options.speed, watchdog_periods=options.watchdog_periods,
+                  log=_say)
+    await build_address_space(server, clock)
+    count = await write_nodeset(server, NAMESPACE_URI, path, overwrite=options.overwrite)
+    _say(f"nodeset: {count} nodes of {NAMESPACE_URI} written to {path}")
     return 0
 
 

@@ -6,6 +6,8 @@ Nothing here knows of OPC UA or of clocks; `bwr_twin.serve.clock` decides when a
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from bwr_twin.config.scene import Scene
@@ -13,6 +15,9 @@ from bwr_twin.sim.record import RunResult
 from bwr_twin.sim.lockstep import Lockstep
 
 END_STOP_MARGIN = 1e-3  # share of a joint's range: closer than this to an end stop is "at" it, as the metrics say
+# Limit switch changes kept until taken: a joint chattering on its limit through a long Step(n),
+# or a user of the twin that never takes them, keeps the latest ones only.
+SWITCHES_KEPT = 1000
 
 
 class Twin:
@@ -25,6 +30,9 @@ class Twin:
         reading: the latest values of the published variables (see `bwr_twin.serve.address_space`),
             SI units: encoder positions (m, rad) and velocities (m/s, rad/s) at the start of period
             k, the reference at k, the forces the drives applied over period k - 1 (N, N m).
+
+    Every period's limit switches are read, so that a switch that closes and opens again
+    between two publications is still seen: `take_limit_switches` hands over the changes.
     """
 
     def __init__(self, scene: Scene):
@@ -42,6 +50,8 @@ class Twin:
         self._high = np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin)
         self._command = np.zeros((1, 3))  # N, N m: the drive forces held over a period
         self.reading: dict[str, object] = {"DriveApplied": np.zeros(3), "ReclaimRate": 0.0}
+        self._switches: deque[tuple[int, bool, float]] = deque(maxlen=SWITCHES_KEPT)
+        self._at_limit = None  # the switches of the period before: none at the path's start
         self._measure()
 
     @property
@@ -77,6 +87,13 @@ class Twin:
             self._measure()
         self.reading["PeriodsLeft"] = self.periods_left
 
+    def take_limit_switches(self) -> list[tuple[int, bool, float]]:
+        """The limit switches that changed since the last call, in order: (axis index, at the
+        limit, SimTime s)."""
+        switches = list(self._switches)
+        self._switches.clear()
+        return switches
+
     def results(self) -> RunResult:
         """The run's result once `done`; raises the SimulationError of a run that diverged."""
         (result,) = self.loop.results()
@@ -89,14 +106,21 @@ class Twin:
         k = loop.k
         q_measured, qd_measured = loop.measure()
         q_true = loop.q_true[0]
+        at_limit = (q_true <= self._low) | (q_true >= self._high)  # the true joint, not the encoder
+        before = self._at_limit
+        if before is not None and at_limit.tobytes() != before.tobytes():  # the cheapest test of three
+            self._switches.extend((int(j), bool(at_limit[j]), float(loop.time[k]))
+                                  for j in np.flatnonzero(at_limit != before))
+        self._at_limit = at_limit
+        # The planned path's rows, or the bench plan's reference of this period: never written.
+        position, velocity, acceleration = (value.reshape(-1, 3)[0].copy() for value in loop.reference_now())
         self.reading.update({
             "SimTime": float(loop.time[k]),
             "PeriodsLeft": self.periods_left,
             "EncoderPosition": q_measured[0].copy(),
             "EncoderVelocity": qd_measured[0].copy(),
-            # The planned path's rows, or the bench plan's reference of this period: never written.
-            **{name: np.reshape(value, (-1, 3))[0].copy() for name, value in zip(
-                ("ReferencePosition", "ReferenceVelocity", "ReferenceAcceleration"), loop.reference_now())},
-            # The limit switches see the true joint, not the encoder.
-            "AtLimit": (q_true <= self._low) | (q_true >= self._high),
+            "ReferencePosition": position,
+            "ReferenceVelocity": velocity,
+            "ReferenceAcceleration": acceleration,
+            "AtLimit": at_limit,
         })

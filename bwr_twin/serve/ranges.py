@@ -1,0 +1,66 @@
+"""The EURange of every analog variable of the address space: the range its value takes in
+normal operation (OPC UA Part 8), from the machine's MJCF where it says, else by a rule that
+docs/opcua.md states; never infinite, never empty.
+
+    Encoder/ReferencePosition  the joint's end stops (`range`), else the envelope; else UNLIMITED_POSITION
+    Encoder/ReferenceVelocity  ± `rated_speed_<axis>`; else ± the position range crossed in UNRATED_CROSSING
+    DriveSetpoint/Applied      the drive rating (`forcerange`, or `ctrlrange` × gear); else what gives
+                               ± UNRATED_ACCELERATION from rest at home, against gravity
+    ReferenceAcceleration      what the drive's range gives from rest at home: (force − gravity) / inertia
+
+SimTime spans the path (of a bench plan, the most it may take), ControlPeriod 0 to the period,
+ReclaimRate 0 to the wheel's capacity at the stockpile's bulk density.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bwr_twin.model.machine import AXES
+from bwr_twin.sim.lockstep import Lockstep
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
+
+# Conventions for what the machine's file does not rate; none is a number of a machine.
+UNRATED_ACCELERATION = 1.0  # m/s², rad/s²: an unrated drive's range gives this, from rest at home
+UNRATED_CROSSING = 60.0  # s: an axis without a rated speed crosses its position range in this time
+UNLIMITED_POSITION = (1000.0, math.pi)  # m (a stockyard's rail), rad (a turn): no end stops, no envelope
+NO_STOCKPILE_RATE = 1.0  # t/h: the span without a stockpile (the rate reads 0 throughout)
+
+Range = tuple[float, float]
+
+
+def eu_ranges(loop: Lockstep) -> dict[tuple[str, str | None], Range]:
+    """(variable, axis or None) -> (low, high) in SI units (t/h for ReclaimRate), for the run of `loop`."""
+    machine = loop.machine
+    position = np.array(machine.joint_range, dtype=float)
+    position = np.where(np.isfinite(position), position, machine.envelope)
+    unlimited = np.array([[-UNLIMITED_POSITION[j > 0], UNLIMITED_POSITION[j > 0]] for j in range(3)])
+    position = np.where(np.isfinite(position), position, unlimited)
+    crossing = (position[:, 1] - position[:, 0]) / UNRATED_CROSSING
+    speed = np.where(np.isfinite(machine.rated_speed), machine.rated_speed, crossing)
+    velocity = np.stack([-speed, speed], axis=1)
+    mass, bias = machine.dynamics.at(np.zeros(3), np.zeros(3))  # at home, at rest: gravity only
+    inertia = np.diag(mass)[:, None]
+    unrated = bias[:, None] + inertia * np.array([-UNRATED_ACCELERATION, UNRATED_ACCELERATION])
+    force = np.where(np.isfinite(machine.drive_limits), machine.drive_limits, unrated)
+    acceleration = (force - bias[:, None]) / inertia
+    per_axis = {"EncoderPosition": position, "ReferencePosition": position, "EncoderVelocity": velocity,
+                "ReferenceVelocity": velocity, "ReferenceAcceleration": acceleration, "DriveSetpoint": force,
+                "DriveApplied": force}
+    ranges: dict[tuple[str, str | None], Range] = {
+        (name, axis): (float(values[j, 0]), float(values[j, 1]))
+        for name, values in per_axis.items() for j, axis in enumerate(AXES)}
+    ranges["SimTime", None] = (0.0, float(loop.duration))
+    ranges["ControlPeriod", None] = (0.0, float(loop.period))
+    ranges["ReclaimRate", None] = (0.0, _reclaim_capacity(loop))
+    return ranges
+
+
+def _reclaim_capacity(loop: Lockstep) -> float:
+    """t/h the bucket wheel carries at most: its volume a second times the pile's bulk density."""
+    if loop.reclaim is None:
+        return NO_STOCKPILE_RATE
+    density = float(loop.reclaim.density[0])  # kg/m³
+    return loop.machine.wheel.capacity * density * SECONDS_PER_HOUR / KG_PER_T
