@@ -3,6 +3,10 @@ importer's process: it loads and unloads pythonfmu's library as Simulink or OMSi
 
     python tests/fmu_checks.py FMU reset PERIODS      traces before and after fmi2Reset, as JSON
     python tests/fmu_checks.py FMU bad-step           a step of 1.5 periods, then a whole one
+    python tests/fmu_checks.py FMU trim PERIODS CHUNK [TRIM]
+                                                      a bench reclaim stepped CHUNK periods at a time, its
+                                                      slew trimmed by TRIM (else the scene's rate loop):
+                                                      the slew reference velocity after each step
 
 Each prints one JSON line; FMPy's logger prints the FMU's messages before it.
 """
@@ -71,6 +75,21 @@ def main(path: str, check: str, *arguments: str) -> None:
         fmu.setReal([refs["Luff.DriveSetpoint"]], [490500.0])
         fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=2 * period)  # the machine is unchanged
         result = {"refused": refused, "periods_left_after": fmu.getInteger([refs["PeriodsLeft"]])[0]}
+    elif check == "trim":
+        periods, chunk = int(arguments[0]), int(arguments[1])
+        if len(arguments) > 2:
+            fmu.setBoolean([refs["SlewSpeedTrimFromInput"]], [True])
+            fmu.setReal([refs["SlewSpeedTrim"]], [float(arguments[2])])
+        period = fmu.getReal([refs["ControlPeriod"]])[0]
+        velocity, refused = [], None
+        for k in range(0, periods, chunk):
+            try:
+                fmu.doStep(currentCommunicationPoint=k * period, communicationStepSize=chunk * period)
+            except Exception as exc:
+                refused = str(exc)
+                break
+            velocity.append(fmu.getReal([refs["Slew.ReferenceVelocity"]])[0])
+        result = {"slew_velocity": velocity, "refused": refused}
     else:
         raise SystemExit(f"unknown check {check!r}")
     fmu.terminate()

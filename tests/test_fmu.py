@@ -175,3 +175,28 @@ def test_a_scene_that_digs_publishes_its_reclaim_rate(tmp_path):
     with zipfile.ZipFile(out) as archive:
         packed = archive.read("resources/scene.toml").decode()
     assert "bwr_heavy.xml" in packed and "/" not in packed.split("mjcf = ")[1].split("\n")[0].strip('"')
+
+
+def test_the_importer_can_trim_a_bench_reclaims_slew_speed_in_place_of_its_rate_loop(tmp_path):
+    """A bench reclaim's FMU takes SlewSpeedTrim while SlewSpeedTrimFromInput is true: a trim of 1
+    is the scene's open loop, bit for bit; 0.5 halves the first pass's slew speed; a trim below the
+    scene's trim_limits is held at them; a trim of 0 is refused."""
+    from test_reclaim_plan import scene_file
+
+    out = tmp_path / "bench.fmu"
+    python("-m", "bwr_twin.export", "fmu", scene_file(tmp_path), "--out", out)
+    variables = {v.name: v for v in read_model_description(str(out)).modelVariables}
+    assert variables["SlewSpeedTrim"].causality == "input" and variables["SlewSpeedTrim"].unit == "1"
+
+    def trimmed(*trim) -> dict:
+        done = python(CHECKS, out, "trim", 2000, 10, *trim)  # 20 s: the approach (11.3 s), then the first pass
+        return json.loads(done.stdout.splitlines()[-1])
+
+    scene_loop, one, half, below = trimmed(), trimmed(1.0), trimmed(0.5), trimmed(0.1)
+    assert one["slew_velocity"] == scene_loop["slew_velocity"]  # the scene's rate loop is open: trim 1
+    assert below["slew_velocity"] == half["slew_velocity"]  # the scene's trim_limits start at 0.5
+    in_pass = slice(115, 185)  # 11.5 to 18.5 s, after 10-period steps: within the first pass (11.3-19.1 s)
+    fastest = np.abs(scene_loop["slew_velocity"][in_pass]).max()
+    assert fastest > 1e-3  # rad/s: the pass slews
+    assert np.abs(half["slew_velocity"][in_pass]).max() == pytest.approx(0.5 * fastest, rel=0.05)
+    assert "status 2" in trimmed(0.0)["refused"]

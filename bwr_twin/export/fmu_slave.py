@@ -5,8 +5,11 @@ the files it reads); pythonfmu's binary loads it in the importing tool's Python,
 is installed. The machine is `bwr_twin.serve.twin.Twin`, the same one the OPC UA server serves, so
 the FMU, the server and an in-process loop give one PID the same encoders, bit for bit.
 
-Variables (their units and meanings in `VARIABLES`), named as the OPC UA address space names them:
-- inputs `<Axis>.DriveSetpoint` (N, N m), held over the periods a step advances;
+Variables (their units and meanings in OUTPUTS, SETPOINT, TRIM, PARAMETERS), named as the OPC UA
+address space names them:
+- inputs `<Axis>.DriveSetpoint` (N, N m), held over the periods a step advances; in a bench
+  reclaim, `SlewSpeedTrim` with `SlewSpeedTrimFromInput`, the importer's rate loop in place of the
+  scene's;
 - outputs per axis: encoder position and velocity, the reference's position, velocity and
   acceleration, the drive force applied, the limit switch; `ReclaimRate` where the scene digs;
 - parameters read once, on leaving initialisation: the disturbance seed, amplitudes and hold time,
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +45,7 @@ UNITS = {
     "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2}, "N.m": {"kg": 1, "m": 2, "s": -2},
-    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600},
+    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600}, "1": {},
 }
 
 
@@ -65,6 +69,11 @@ OUTPUTS = (
 )
 SWITCHES = Signal("AtLimit", None, "limit switch: the joint at or beyond its operating envelope or end stop")
 RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, as the belt scale sees it", False)
+# A bench reclaim's rate loop, replaceable by the importer's: its trim, and whether it is used.
+TRIM = Signal("SlewSpeedTrim", "1", "the bench plan's slew speed law times this, within the scene's "
+              "trim_limits, while SlewSpeedTrimFromInput is true", False)
+TRIM_FROM_INPUT = Signal("SlewSpeedTrimFromInput", None, "true: SlewSpeedTrim trims the slew speed; "
+                         "false: the scene's own rate loop does", False)
 SETPOINT = Signal("DriveSetpoint", ("N", "N.m"), "drive force the controller commands, held over the step")
 # Scene keys an importer may set before initialisation, each (FMI name, scene key, axis index or None, unit).
 PARAMETERS = (
@@ -106,8 +115,7 @@ class BwrReclaimer(Fmi2Slave):
         self._scene_path = Path(self.resources) / SCENE_FILE
         _keep_library_loaded(Path(self.resources).parent)
         self._base = load_scene(self._scene_path)
-        self._values = {name: self._scene_value(key, index) for name, key, index, _, _ in PARAMETERS}
-        self._setpoint = [0.0, 0.0, 0.0]
+        self._start_values()
         self._build()
         self.modelName = "BwrReclaimer"
         self.default_experiment = DefaultExperiment(0.0, self._twin.samples * self._twin.period, self._twin.period)
@@ -132,6 +140,13 @@ class BwrReclaimer(Fmi2Slave):
         if self._base.stockpile is not None:
             self._real(RECLAIM_RATE.name, RECLAIM_RATE.unit, RECLAIM_RATE.meaning, Fmi2Causality.output,
                        getter=lambda: float(self._twin.reading["ReclaimRate"]))
+        if self._base.reclaim is not None:
+            self._real(TRIM.name, TRIM.unit, TRIM.meaning, Fmi2Causality.input,
+                       getter=lambda: self._trim[0], setter=lambda v: self._trim.__setitem__(0, float(v)))
+            self.register_variable(Boolean(TRIM_FROM_INPUT.name, causality=Fmi2Causality.input,
+                                           variability=Fmi2Variability.discrete, description=TRIM_FROM_INPUT.meaning,
+                                           getter=lambda: self._trim[1],
+                                           setter=lambda v: self._trim.__setitem__(1, bool(v))))
         self.register_variable(Integer("PeriodsLeft", causality=Fmi2Causality.output,
                                        variability=Fmi2Variability.discrete, description="control periods left on the path; 0 at its end",
                                        getter=lambda: int(self._twin.periods_left)))
@@ -202,6 +217,12 @@ class BwrReclaimer(Fmi2Slave):
         value = getattr(getattr(self._base, table), name)
         return value if index is None else value[index]
 
+    def _start_values(self) -> None:
+        """The parameters and inputs as the model description starts them."""
+        self._values = {name: self._scene_value(key, index) for name, key, index, _, _ in PARAMETERS}
+        self._setpoint = [0.0, 0.0, 0.0]
+        self._trim: list = [1.0, False]  # SlewSpeedTrim, SlewSpeedTrimFromInput
+
     def _build(self) -> None:
         """A fresh run of the scene with the parameters as they are now."""
         overrides: dict[str, object] = {}
@@ -211,7 +232,6 @@ class BwrReclaimer(Fmi2Slave):
             else:
                 overrides.setdefault(key, list(self._scene_value(key, None)))[index] = float(self._values[name])
         self._twin = Twin(load_scene(self._scene_path, overrides))
-        self._setpoint = [0.0, 0.0, 0.0]
         self._read_outputs()
 
     def _read_outputs(self) -> None:
@@ -234,6 +254,12 @@ class BwrReclaimer(Fmi2Slave):
         if abs(current_time - twin.k * twin.period) > STEP_TOLERANCE * max(1.0, current_time):
             return self._refuse(f"the step starts at t = {current_time!r} s, the machine is at "
                                 f"t = {twin.k * twin.period!r} s; steps follow each other without gaps")
+        trim, from_input = self._trim
+        if from_input and not (math.isfinite(trim) and trim > 0):
+            return self._refuse(f"SlewSpeedTrim {trim!r}: must be a positive number while SlewSpeedTrimFromInput "
+                                "is true")
+        if self._base.reclaim is not None:
+            twin.set_rate_trim(trim if from_input else None)
         if whole > twin.periods_left:
             return self._refuse(f"a step of {whole} control periods passes the path's end at "
                                 f"t = {twin.samples * twin.period:g} s ({twin.periods_left} periods left)")
@@ -256,5 +282,6 @@ class BwrReclaimer(Fmi2Slave):
         gc.collect()
 
     def reset(self):
+        self._start_values()
         self._build()
 

@@ -87,6 +87,11 @@ class Twin:
             self._measure()
         self.reading["PeriodsLeft"] = self.periods_left
 
+    def set_rate_trim(self, trim: float | None) -> None:
+        """A bench reclaim's slew-speed trim set from outside from the next period on, held within the
+        scene's `trim_limits`; None: the scene's own rate control trims again."""
+        self.loop.tracking.external_trim = trim
+
     def take_limit_switches(self) -> list[tuple[int, bool, float]]:
         """The limit switches that changed since the last call, in order: (axis index, at the
         limit, SimTime s)."""

@@ -82,9 +82,13 @@ class BenchTracking:
         plan: the bench plan (bwr_twin.planning.plan.BenchPlan).
         samples, time: the most control periods the plan may take, and their times (s).
         start: (3,) the plan's start.
+        external_trim: None while the scene's rate control trims the slew speed; else the trim
+            every run takes from the next period on, set by a rate loop outside the twin (the
+            FMU's importer), held within the scene's `trim_limits`.
     """
 
     shared = False
+    external_trim: float | None = None
 
     def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float):
         """Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
@@ -95,6 +99,7 @@ class BenchTracking:
         self._period = period
         self._stop = scene.reclaim.stop
         control = scene.reclaim.rate_control
+        self._trim_limits = control.trim_limits
         digging = [s.digging for s in scenes]
         wheel = WheelCalibration(
             idle_power=np.array([d.idle_power if d else np.nan for d in digging]),
@@ -123,8 +128,11 @@ class BenchTracking:
         self.outcome.add(k - 1, phase, reclaim)
         time = (k - 1) * self._period
         signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
-        trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
-                       (len(signals.belt_rate),), time)
+        if self.external_trim is not None:
+            trim = np.full(len(signals.belt_rate), np.clip(self.external_trim, *self._trim_limits))
+        else:
+            trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
+                           (len(signals.belt_rate),), time)
         if not np.isfinite(trim).all():
             raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
         stop, stopping = self._stop, None
