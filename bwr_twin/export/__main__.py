@@ -27,6 +27,9 @@ def main(argv: list[str] | None = None) -> int:
     plc.add_argument("--real", action="store_true", help="REAL (32-bit) instead of LREAL, for PLCs without LREAL")
     plc.add_argument("--grid", type=int, help="grid points per input of a fuzzy control surface's table (the "
                      "twin's by default, so that the block equals it); the README states the error bound")
+    plc.add_argument("--fuzzy", choices=("table", "rules"), default="table",
+                     help="a fuzzy controller's fuzzy part as its control surface's table (default), or inferred "
+                     "rule by rule each cycle as skfuzzy does (no table; the README states its cost)")
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
     fmu = commands.add_parser("fmu", help="one run of the scene as an FMI 2.0 co-simulation FMU")
     fmu.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
@@ -42,7 +45,8 @@ def _plc(args) -> int:
     from bwr_twin.shipped import find_scene
 
     scene = load_scene(find_scene(args.scene))
-    for path in export_plc(scene, args.out, real=args.real, grid=args.grid, overwrite=args.overwrite):
+    for path in export_plc(scene, args.out, real=args.real, grid=args.grid, fuzzy=args.fuzzy,
+                           overwrite=args.overwrite):
         print(path)
     return 0
 

@@ -1,19 +1,24 @@
 """The twin's controllers as IEC 61131-3 function blocks (bwr_twin.export.structured_text's data).
 
 Each block's arithmetic is the twin's own, operation for operation and in the same order, so that
-in LREAL it gives the twin's forces to the last bit (tests/test_plc_export.py):
+in LREAL it gives the twin's forces to the last bit (tests/test_plc_export.py); the rules block's
+fuzzy part is skfuzzy's instead, where the twin reads a table:
 - `pid_block`: bwr_twin.control.pid;
 - `computed_torque_block`: bwr_twin.control.computed_torque, over the closed-form model;
 - `fuzzy_model_block`: the paper's controller (bwr_twin.control.controller), its control surface
-  interpolated as bwr_twin.control.fuzzy does, over the same model.
-The model-based blocks read two global constant lists: `machine_globals`, M(q) and gravity in
-closed form (bwr_twin.model.dynamics), and `surface_globals`, the control surface's table.
+  interpolated as bwr_twin.control.fuzzy does, over the same model;
+- `fuzzy_rules_model_block`: the same controller, its fuzzy part inferred rule by rule each call
+  as skfuzzy infers it (bwr_twin.control.fuzzy.skfuzzy_compute), to rounding.
+The model-based blocks read global constant lists: `machine_globals`, M(q) and gravity in closed
+form (bwr_twin.model.dynamics), and `surface_globals`, the control surface's table, or
+`rule_globals`, the rule base's sets, rules and universes.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from bwr_twin.control.rulebase import RuleBase
 from bwr_twin.export.structured_text import Block, GlobalConstants, Var, integers, lreal, reals
 
 AXES = "index 0 travel, 1 slew, 2 luff"
@@ -183,22 +188,14 @@ def _grid_cell(coordinate: str, cell: str, fraction: str) -> tuple[str, ...]:
     )
 
 
-def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, feedforward: bool,
-                      source: str) -> Block:
-    """The paper's controller: the fuzzy surface on top of the model."""
-    return Block(name, (
-        f"The fuzzy + model-based controller of {source} (Lu's Fig. 5 and 11), exported by\n"
-        "python -m bwr_twin.export plc. Per axis u = OUTPUT_GAIN FLC(SCALE_E e, SCALE_EC de/dt)\n"
-        "[+ qdd_ref], e = q_ref - q, the control surface FLC from GVL_BwrFuzzySurface; then\n"
-        "force = M(q) u + bias(q, qd) with the believed machine of GVL_BwrMachine. No state."), {
+def _fuzzy_model(name: str, comment: str, fuzzy_variables: tuple[Var, ...], fuzzy_statements: tuple[str, ...],
+                 scale_e: float, scale_ec: float, output_gain, feedforward: bool) -> Block:
+    """The paper's controller around a fuzzy part: `fuzzy_statements` set fuzzy_output[j] of axis j
+    (over `fuzzy_variables`); the output gain, the feed-forward and the model are every variant's."""
+    return Block(name, comment, {
         "VAR_INPUT": (_Q, _QD, _Q_REF, _QD_REF, _QDD_REF),
         "VAR_OUTPUT": (_FORCE, _U, Var("fuzzy_output", dims=(3,), comment="FLC output, in its output universe")),
-        "VAR": (*_DYNAMICS_VARIABLES,
-                Var("grid_e", comment="grid coordinates of the scaled inputs"), Var("grid_ec"),
-                Var("cell_e", "DINT"), Var("cell_ec", "DINT"),
-                Var("s", comment="how far into the cell, along e and ec"), Var("t"),
-                *(Var(corner) for corner in ("v00", "v10", "v01", "v11", "c2")),
-                Var("ta", comment="the triangle's plane: ta + tb s + tc t"), Var("tb"), Var("tc")),
+        "VAR": (*_DYNAMICS_VARIABLES, *fuzzy_variables),
         "VAR CONSTANT": (reals("SCALE_E", scale_e, "K_e: 1/m, 1/rad"), reals("SCALE_EC", scale_ec, "K_ec: s/m, s/rad"),
                          reals("OUTPUT_GAIN", output_gain,
                                "K_out: m/s^2, rad/s^2, rad/s^2 per unit of the output universe"),
@@ -206,6 +203,31 @@ def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, f
                          *_ENTRY_CONSTANTS),
     }, (
         "FOR j := 0 TO 2 DO",
+        *fuzzy_statements,
+        "    u[j] := fuzzy_output[j] * OUTPUT_GAIN[j];",
+        "    IF FEEDFORWARD = 1 THEN",
+        "        u[j] := u[j] + qdd_ref[j];",
+        "    END_IF",
+        "END_FOR",
+        *_DYNAMICS_STATEMENTS,
+        *_TORQUE_STATEMENTS,
+    ))
+
+
+def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, feedforward: bool,
+                      source: str) -> Block:
+    """The paper's controller: the fuzzy surface on top of the model."""
+    return _fuzzy_model(name, (
+        f"The fuzzy + model-based controller of {source} (Lu's Fig. 5 and 11), exported by\n"
+        "python -m bwr_twin.export plc. Per axis u = OUTPUT_GAIN FLC(SCALE_E e, SCALE_EC de/dt)\n"
+        "[+ qdd_ref], e = q_ref - q, the control surface FLC from GVL_BwrFuzzySurface; then\n"
+        "force = M(q) u + bias(q, qd) with the believed machine of GVL_BwrMachine. No state."), (
+        Var("grid_e", comment="grid coordinates of the scaled inputs"), Var("grid_ec"),
+        Var("cell_e", "DINT"), Var("cell_ec", "DINT"),
+        Var("s", comment="how far into the cell, along e and ec"), Var("t"),
+        *(Var(corner) for corner in ("v00", "v10", "v01", "v11", "c2")),
+        Var("ta", comment="the triangle's plane: ta + tb s + tc t"), Var("tb"), Var("tc"),
+    ), (
         "    grid_e := ((q_ref[j] - q[j]) * SCALE_E - SURFACE_E0) * SURFACE_SCALE_E;",
         "    grid_ec := ((qd_ref[j] - qd[j]) * SCALE_EC - SURFACE_EC0) * SURFACE_SCALE_EC;",
         *_grid_cell("grid_e", "cell_e", "s"),
@@ -225,11 +247,232 @@ def fuzzy_model_block(name: str, scale_e: float, scale_ec: float, output_gain, f
         "        ta := v00; tb := v10 - v00; tc := c2 - v00 - v10;",
         "    END_IF",
         "    fuzzy_output[j] := ta + tb * s + tc * t;",
-        "    u[j] := fuzzy_output[j] * OUTPUT_GAIN[j];",
-        "    IF FEEDFORWARD = 1 THEN",
-        "        u[j] := u[j] + qdd_ref[j];",
-        "    END_IF",
-        "END_FOR",
-        *_DYNAMICS_STATEMENTS,
-        *_TORQUE_STATEMENTS,
+    ), scale_e, scale_ec, output_gain, feedforward)
+
+
+def rule_globals(name: str, rule_base: RuleBase, source: str) -> GlobalConstants:
+    """The rule base's own numbers, from which the rules block infers each cycle."""
+    n = len(rule_base.sets)
+    table = [[rule_base.sets.index(out) for out in row] for row in rule_base.rules]
+    ranges = {"E": rule_base.e_range, "EC": rule_base.ec_range, "OUTPUT": rule_base.output_range}
+    return GlobalConstants(name, (
+        f"The Mamdani rule base of {source}: {n} triangular sets on each universe ({', '.join(rule_base.sets)}),\n"
+        f"{n} x {n} rules 'IF e is set i AND ec is set k THEN u is FUZZY_RULES[i, k]', min-AND, max\n"
+        "accumulation and centroid defuzzification over FUZZY_OUTPUT_POINTS samples of the output\n"
+        "universe, as skfuzzy computes them."), (
+        integers("FUZZY_SET_COUNT", n, "sets on each universe, lowest first"),
+        *(reals(f"FUZZY_{axis}_SETS", rule_base.term_abcs(*bounds),
+                "each set's triangle (a, b, c): feet a and c, peak b") for axis, bounds in ranges.items()),
+        integers("FUZZY_RULES", table, "the output set of e's set i and ec's set k"),
+        *(reals(f"FUZZY_{axis}_RANGE", bounds, "the universe: low, high") for axis, bounds in ranges.items()),
+        integers("FUZZY_OUTPUT_POINTS", rule_base.output_points, "samples of the output universe, ends included"),
     ))
+
+
+def _corners(sets: str, index: str) -> str:
+    """The triangle `sets`[index, 0..2] into foot_low, peak, foot_high."""
+    return f"foot_low := {sets}[{index}, 0]; peak := {sets}[{index}, 1]; foot_high := {sets}[{index}, 2];"
+
+
+def _membership(point: str, sets: str, index: str, result: str, indent: str) -> tuple[str, ...]:
+    """`result` := the membership of `point` in the triangle `sets`[index, 0..2], as skfuzzy's trimf
+    computes it (a shoulder set, foot_low = peak or peak = foot_high, has no slope on that side)."""
+    return tuple(indent + line for line in (
+        _corners(sets, index),
+        f"IF {point} < peak THEN",
+        f"    IF {point} > foot_low THEN",
+        f"        {result} := ({point} - foot_low) / (peak - foot_low);",
+        "    ELSE",
+        f"        {result} := 0.0;",
+        "    END_IF",
+        f"ELSIF {point} > peak THEN",
+        f"    IF {point} < foot_high THEN",
+        f"        {result} := (foot_high - {point}) / (foot_high - peak);",
+        "    ELSE",
+        f"        {result} := 0.0;",
+        "    END_IF",
+        "ELSE",
+        f"    {result} := 1.0;",
+        "END_IF",
+    ))
+
+
+def _fuzzify(error: str, scale: str, universe: str, memberships: str) -> tuple[str, ...]:
+    """The memberships of a scaled input in its universe's sets, the input clipped to the universe
+    first (skfuzzy's clip_to_bounds)."""
+    return (
+        f"    (* the memberships of {scale} {error}, clipped to its universe as skfuzzy's clip_to_bounds does *)",
+        f"    scaled := LIMIT(FUZZY_{universe}_RANGE[0], {error} * {scale}, FUZZY_{universe}_RANGE[1]);",
+        "    FOR k := 0 TO FUZZY_SET_COUNT - 1 DO",
+        *_membership("scaled", f"FUZZY_{universe}_SETS", "k", f"{memberships}[k]", "        "),
+        "    END_FOR",
+    )
+
+
+_RULE_STATEMENTS = (
+    "    (* every rule: the min of its two memberships, the max of these for each output set *)",
+    "    FOR k := 0 TO FUZZY_SET_COUNT - 1 DO",
+    "        activation[k] := 0.0;",
+    "    END_FOR",
+    "    FOR i := 0 TO FUZZY_SET_COUNT - 1 DO",
+    "        FOR k := 0 TO FUZZY_SET_COUNT - 1 DO",
+    "            output_set := FUZZY_RULES[i, k];",
+    "            activation[output_set] := MAX(activation[output_set], MIN(e_membership[i], ec_membership[k]));",
+    "        END_FOR",
+    "    END_FOR",
+)
+# skfuzzy adds to the output samples the points where an output set's triangle crosses its
+# activation; only those strictly inside matter (at 0 and 1 they are the set's feet and peak,
+# which are samples). At most two a set, and they come nearly in order: an insertion sort.
+_CUT_STATEMENTS = (
+    "    (* the active output sets, and where each one's triangle crosses its activation *)",
+    "    active_count := 0; cut_count := 0;",
+    "    FOR k := 0 TO FUZZY_SET_COUNT - 1 DO",
+    "        IF activation[k] > 0.0 THEN",
+    "            active[active_count] := k; active_count := active_count + 1;",
+    "            IF activation[k] < 1.0 THEN",
+    f"                {_corners('FUZZY_OUTPUT_SETS', 'k')}",
+    "                IF foot_low < peak THEN",
+    "                    cuts[cut_count] := foot_low + activation[k] * (peak - foot_low);",
+    "                    cut_count := cut_count + 1;",
+    "                END_IF",
+    "                IF peak < foot_high THEN",
+    "                    cuts[cut_count] := foot_high - activation[k] * (foot_high - peak);",
+    "                    cut_count := cut_count + 1;",
+    "                END_IF",
+    "            END_IF",
+    "        END_IF",
+    "    END_FOR",
+    "    (* sorted by insertion: a few points, nearly in order *)",
+    "    FOR k := 1 TO cut_count - 1 DO",
+    "        cut := cuts[k]; slot := k;",
+    "        FOR i := 1 TO k DO",
+    "            IF cuts[slot - 1] <= cut THEN",
+    "                EXIT;",
+    "            END_IF",
+    "            cuts[slot] := cuts[slot - 1]; slot := slot - 1;",
+    "        END_FOR",
+    "        cuts[slot] := cut;",
+    "    END_FOR",
+    "    cuts[cut_count] := FUZZY_OUTPUT_RANGE[1];  (* the walk's sentinel: every cut lies below it *)",
+)
+_ACCUMULATE = "moment_sum := moment_sum + moment * area; area_sum := area_sum + area;"
+# skfuzzy's centroid, term for term: the aggregated membership linear between neighbouring points,
+# each segment a rectangle, a triangle or a trapezoid, a segment of no width (a point skfuzzy's
+# np.union1d would have dropped as a duplicate) or under zero membership adding nothing.
+_SEGMENT_STATEMENTS = (
+    "        IF point <> previous_point THEN",
+    "            IF membership = previous_membership THEN",
+    "                IF membership > 0.0 THEN",
+    "                    moment := 0.5 * (previous_point + point);",
+    "                    area := (point - previous_point) * previous_membership;",
+    f"                    {_ACCUMULATE}",
+    "                END_IF",
+    "            ELSE",
+    "                IF previous_membership = 0.0 THEN",
+    f"                    moment := {lreal(2.0 / 3.0)} * (point - previous_point) + previous_point;",
+    "                    area := 0.5 * (point - previous_point) * membership;",
+    "                ELSIF membership = 0.0 THEN",
+    f"                    moment := {lreal(1.0 / 3.0)} * (point - previous_point) + previous_point;",
+    "                    area := 0.5 * (point - previous_point) * previous_membership;",
+    "                ELSE",
+    f"                    moment := {lreal(2.0 / 3.0)} * (point - previous_point)"
+    " * (membership + 0.5 * previous_membership) / (previous_membership + membership) + previous_point;",
+    "                    area := 0.5 * (point - previous_point) * (previous_membership + membership);",
+    "                END_IF",
+    f"                {_ACCUMULATE}",
+    "            END_IF",
+    "        END_IF",
+)
+_CENTROID_STATEMENTS = (
+    "    (* the centroid over the output samples (as np.linspace places them) merged with the cuts *)",
+    "    spacing := (FUZZY_OUTPUT_RANGE[1] - FUZZY_OUTPUT_RANGE[0]) / DINT_TO_LREAL(FUZZY_OUTPUT_POINTS - 1);",
+    "    sample := FUZZY_OUTPUT_RANGE[0]; sample_index := 0; cut_index := 0;",
+    "    previous_point := sample; previous_membership := 0.0;  (* the first point's segment has no width *)",
+    "    moment_sum := 0.0; area_sum := 0.0;",
+    "    FOR n := 0 TO FUZZY_OUTPUT_POINTS + cut_count - 1 DO",
+    "        IF cuts[cut_index] < sample THEN",
+    "            point := cuts[cut_index]; cut_index := cut_index + 1;",
+    "        ELSE",
+    "            point := sample; sample_index := sample_index + 1;",
+    "            IF sample_index < FUZZY_OUTPUT_POINTS - 1 THEN",
+    "                sample := DINT_TO_LREAL(sample_index) * spacing + FUZZY_OUTPUT_RANGE[0];",
+    "            ELSE",
+    "                sample := FUZZY_OUTPUT_RANGE[1];",
+    "            END_IF",
+    "        END_IF",
+    "        membership := 0.0;  (* max over the active sets of MIN(activation, the set's membership) *)",
+    "        FOR k := 0 TO active_count - 1 DO",
+    "            output_set := active[k];",
+    *_membership("point", "FUZZY_OUTPUT_SETS", "output_set", "set_membership", "            "),
+    "            membership := MAX(membership, MIN(activation[output_set], set_membership));",
+    "        END_FOR",
+    *_SEGMENT_STATEMENTS,
+    "        previous_point := point; previous_membership := membership;",
+    "    END_FOR",
+    "    fuzzy_output[j] := moment_sum / area_sum;  (* area_sum > 0: some rule fires at 0.5 or more *)",
+)
+
+
+def fuzzy_rules_model_block(name: str, scale_e: float, scale_ec: float, output_gain, feedforward: bool,
+                            set_count: int, source: str) -> Block:
+    """The paper's controller with its fuzzy part inferred rule by rule each cycle, as skfuzzy
+    infers it, instead of read from the control surface's table."""
+    sets = (set_count,)
+    return _fuzzy_model(name, (
+        f"The fuzzy + model-based controller of {source} (Lu's Fig. 5 and 11), exported by\n"
+        "python -m bwr_twin.export plc --fuzzy rules. Per axis\n"
+        "u = OUTPUT_GAIN FLC(SCALE_E e, SCALE_EC de/dt) [+ qdd_ref], e = q_ref - q, FLC the Mamdani\n"
+        "inference of GVL_BwrFuzzyRules computed rule by rule each call as skfuzzy computes it; then\n"
+        "force = M(q) u + bias(q, qd) with the believed machine of GVL_BwrMachine. No state."), (
+        Var("scaled", comment="an input scaled and clipped to its universe"),
+        Var("foot_low", comment="a set's triangle"), Var("peak"), Var("foot_high"),
+        Var("e_membership", dims=sets, comment="of the scaled e in each of its sets"),
+        Var("ec_membership", dims=sets),
+        Var("activation", dims=sets, comment="of each output set: the max of its rules' min-AND"),
+        Var("active", "DINT", sets, comment="the output sets with activation > 0"), Var("active_count", "DINT"),
+        Var("output_set", "DINT"),
+        Var("cuts", dims=(2 * set_count + 1,), comment="where the output sets cross their activations, sorted"),
+        Var("cut_count", "DINT"), Var("cut"), Var("slot", "DINT"),
+        Var("spacing", comment="the output samples' spacing"), Var("sample"), Var("sample_index", "DINT"),
+        Var("cut_index", "DINT"), Var("point", comment="the centroid's current point and its membership"),
+        Var("membership"), Var("set_membership"), Var("previous_point"), Var("previous_membership"),
+        Var("moment"), Var("area"), Var("moment_sum"), Var("area_sum"),
+    ), (
+        *_fuzzify("(q_ref[j] - q[j])", "SCALE_E", "E", "e_membership"),
+        *_fuzzify("(qd_ref[j] - qd[j])", "SCALE_EC", "EC", "ec_membership"),
+        *_RULE_STATEMENTS,
+        *_CUT_STATEMENTS,
+        *_CENTROID_STATEMENTS,
+    ), scale_e, scale_ec, output_gain, feedforward)
+
+
+def most_active_sets(set_count: int) -> int:
+    """How many output sets a rule base's inference can activate at once. The sets are triangles
+    with their feet at the neighbours' peaks (RuleBase.term_abcs), so an input lies strictly
+    inside at most two of a universe's sets: at most four rules fire."""
+    return min(4, set_count)
+
+
+def rules_cost_bound(set_count: int, output_points: int) -> tuple[int, int]:
+    """At most how many LREAL arithmetic operations (+, -, *, /, DINT_TO_LREAL) and comparisons
+    (MIN and MAX one each, LIMIT two) the rules block's loop over the axes (its fuzzy part, and u
+    from it) does a call: each statement's worst branch, with `most_active_sets` active output
+    sets cutting their triangles at two points each, and a point strictly inside two triangles
+    at most."""
+    n, points = set_count, output_points
+    active = most_active_sets(n)
+    cuts = 2 * active
+    walked = points + cuts
+    arithmetic = (2 * (2 + 2 * 3)  # each input scaled; its two memberships inside a triangle
+                  + 3 * cuts  # the cut points
+                  + 3 + 3 * points  # the samples' spacing, and each sample
+                  + walked * (2 * 3 + 15)  # each point's memberships inside a triangle, its segment's trapezoid
+                  + 1  # the centroid
+                  + 2)  # u, with the feed-forward
+    comparisons = (2 * (2 + 3 * n)  # each input clipped, tested against every set's triangle
+                   + 2 * n * n  # every rule's MIN and MAX
+                   + n + 3 * active  # the active sets; whether and where they cut
+                   + cuts * (cuts - 1) // 2  # the insertion sort
+                   + walked * (1 + 5 * active + 4))  # the merge; each active set's membership, MIN, MAX; the segment
+    return 3 * arithmetic, 3 * comparisons
