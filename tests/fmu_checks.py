@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "fmu_pid.py"
@@ -70,7 +71,7 @@ def main(path: str, check: str, *arguments: str) -> None:
         try:
             fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.5 * period)
             refused = None
-        except Exception as exc:  # FMPy raises FMICallException with the status
+        except FMICallException as exc:  # with the status the FMU returned
             refused = str(exc)
         fmu.setReal([refs["Luff.DriveSetpoint"]], [490500.0])
         fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=2 * period)  # the machine is unchanged
@@ -85,7 +86,7 @@ def main(path: str, check: str, *arguments: str) -> None:
         for k in range(0, periods, chunk):
             try:
                 fmu.doStep(currentCommunicationPoint=k * period, communicationStepSize=chunk * period)
-            except Exception as exc:
+            except FMICallException as exc:
                 refused = str(exc)
                 break
             velocity.append(fmu.getReal([refs["Slew.ReferenceVelocity"]])[0])

@@ -234,13 +234,14 @@ def pid_settings():
     return load_scene(find_scene("pid_paper")).controller.settings  # 2 rad/s, the luff's holding torque
 
 
-async def pid_session(url: str, periods: int, password: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Reset, then the PID over the wire for `periods`: (periods, 3) encoder positions and
-    references as the PLC read them."""
+async def pid_session(url: str, periods: int, password: str | None = None,
+                      make_pid=lambda period: Pid(pid_settings(), period)) -> tuple[np.ndarray, np.ndarray]:
+    """Reset, then the PID `make_pid(control period)` over the wire for `periods`: (periods, 3)
+    encoder positions and references as the PLC read them."""
     async with client(url, password) as connection:
         plc = await Plc.attach(connection)
         await plc.call("Reset")
-        pid = Pid(pid_settings(), await plc.value("ControlPeriod"))
+        pid = make_pid(await plc.value("ControlPeriod"))
         positions, references = [], []
         for _ in range(periods):
             q, qd, q_ref, qd_ref = await plc.read("EncoderPosition", "EncoderVelocity", "ReferencePosition",

@@ -24,9 +24,17 @@ from pathlib import Path
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
 from bwr_twin.errors import SceneError
-from bwr_twin.export.blocks import (computed_torque_block, fuzzy_model_block, fuzzy_rules_model_block, machine_globals,
-                                   most_active_sets, pid_block, rule_globals, rules_cost_bound,
-                                   surface_globals)
+from bwr_twin.export.blocks import (
+    computed_torque_block,
+    fuzzy_model_block,
+    fuzzy_rules_model_block,
+    machine_globals,
+    most_active_sets,
+    pid_block,
+    rule_globals,
+    rules_cost_bound,
+    surface_globals,
+)
 from bwr_twin.export.plcopen import project_xml
 from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, block_text, globals_text
 from bwr_twin.fis.convert import load_rule_base

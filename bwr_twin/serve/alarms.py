@@ -40,7 +40,7 @@ class Alarms:
     async def build(cls, space: AddressSpace) -> Alarms:
         """The conditions' event generators, emitting on Objects/Reclaimer; the Reclaimer a
         notifier of the Server object, its axes its event sources."""
-        server, ns = space.server, space.namespace
+        server = space.server
         reclaimer = space.objects[None]
         await server.nodes.server.add_reference(reclaimer.nodeid, ua.ObjectIds.HasNotifier)
         conditions = {}

@@ -20,6 +20,7 @@ from bwr_twin.results.ownership import NODESET_WRITER, check_output, xml_mark
 from bwr_twin.results.rundir import write_atomically
 from bwr_twin.serve import ServeError
 
+
 async def write_nodeset(server: Server, namespace_uri: str, path: Path, *, overwrite: bool) -> int:
     """Write every node of `namespace_uri` on `server` to `path` (checked again just before);
     the number of nodes written."""

@@ -11,8 +11,8 @@ from collections import deque
 import numpy as np
 
 from bwr_twin.config.scene import Scene
-from bwr_twin.sim.record import RunResult
 from bwr_twin.sim.lockstep import Lockstep
+from bwr_twin.sim.record import RunResult
 
 END_STOP_MARGIN = 1e-3  # share of a joint's range: closer than this to an end stop is "at" it, as the metrics say
 # Limit switch changes kept until taken: a joint chattering on its limit through a long Step(n),
