@@ -171,6 +171,15 @@ class DiggingSection:
 
 
 @dataclass(frozen=True)
+class SensingSection:
+    """`[sensing]`: the automation's own senses (docs/sensing.md)."""
+
+    # The machine's 2D laser scanners: None scans with them if the machine has any and the scene
+    # a stockpile; false leaves them off (for comparison); true asks for them.
+    scanners: bool | None = None
+
+
+@dataclass(frozen=True)
 class RateControlSection:
     """`[reclaim.rate_control]`: how the slew speed is trimmed to hold the target rate.
 
@@ -229,6 +238,7 @@ class Scene:
     plant: PlantSection = field(default_factory=PlantSection)
     stockpile: StockpileSection | None = None
     digging: DiggingSection | None = None
+    sensing: SensingSection = field(default_factory=SensingSection)
 
     @property
     def controller_mjcf(self) -> Path:
@@ -599,6 +609,8 @@ def _check_rules(scene: Scene) -> None:
     _check_stockpile(scene)
     if scene.reclaim is not None:
         _check_reclaim(scene)
+    if scene.sensing.scanners and scene.stockpile is None:
+        raise SceneError(f"{p}: 'sensing.scanners' is true, but the scene has no [stockpile] to scan")
     files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
     files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
     for key, file in files.items():

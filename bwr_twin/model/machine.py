@@ -24,6 +24,7 @@ import numpy as np
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.model.dynamics import ChainDynamics
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
+from bwr_twin.sensing.scanner import Scanner, read_scanners
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
@@ -129,6 +130,8 @@ class Machine:
         rated_speed: (3,) the drives' rated speeds in m/s and rad/s (inf where the file gives none).
         identification: the file's `<custom><text>` entries of IDENTIFICATION_KEYS, key -> text
             (only those it has); `name` the `<mujoco model=...>` name.
+        scanners: the 2D laser scanners on the machine, its sites named `scanner...` with their
+            `<custom>` numerics (bwr_twin.sensing.scanner); () if it has none.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
@@ -160,6 +163,7 @@ class Machine:
         self.rated_speed = self._read_rated_speed()
         self.identification = {key: text for key in IDENTIFICATION_KEYS if (text := self._text(key)) is not None}
         self.name = self.model.names[:self.model.names.index(b"\0")].decode()
+        self.scanners: tuple[Scanner, ...] = read_scanners(self.model, self.path)
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).

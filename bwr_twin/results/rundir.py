@@ -7,6 +7,8 @@ Layout of a run directory (the output contract of docs/contracts.md, plus more):
     scene.json        the resolved scene, so the run can be replayed without its files' paths
     pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m), and
                       for a replay the cells dug frame by frame (bwr_twin.stockpile.history)
+    scans.npz         with a stockpile and a machine that scans: every scan's time, origin and
+    survey.npz        hits, and the pile known from them at the end (bwr_twin.sensing.outputs)
     *.png             the paper's figures for this run (bwr_twin.results.plots)
 """
 
@@ -159,6 +161,8 @@ def write_run(
             history = pile.history.arrays() if pile.history is not None else {}
             np.savez_compressed(staging / PILE_FILE, x=pile.x, y=pile.y, z_start=pile.z_start, z_end=pile.z_end,
                                 **history)
+        if result.scan is not None:
+            result.scan.write(staging)
         if plots:
             from bwr_twin.results.plots import save_run_figures
 

@@ -18,6 +18,8 @@ from pathlib import Path
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
+from bwr_twin.sensing.outputs import HIT_BYTES, SCAN_BYTES, SURVEY_CELL_BYTES
+from bwr_twin.sensing.scanning import planned_scanners
 from bwr_twin.signals import csv_columns, recorded_values
 from bwr_twin.stockpile.surface import cell_count
 
@@ -34,6 +36,10 @@ SAMPLE_BYTES = 13 * 8  # the path sampled at the control period: time, q, qd, qd
 PILE_PERIOD_S = 150e-6  # s per control period and run with a stockpile: the cut and its accounting
 PILE_CELL_BYTES = 8  # a run's pile heights in memory, per cell
 PILE_FILE_CELL_BYTES = 8  # pile.npz per cell: z_start and z_end, compressed
+# s per ray a scanner casts, with its noise and its cell of the scanned pile, and per scan and run
+# besides: docs/sensing.md measures 40 us a scan of 191 rays in heavy_bench_reclaim's loop.
+SCAN_RAY_S = 0.3e-6
+SCAN_S = 15e-6
 
 # Bounds a command refuses to go beyond without --force.
 MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
@@ -71,6 +77,9 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
         cells = cell_count(scene.stockpile, scene.path) if scene.stockpile is not None else 0
+        scan_bytes, scan_cpu = _scans(scene, duration, cells)
+        disk += scan_bytes
+        cpu += scan_cpu
         # What a run records a row (bwr_twin.signals): float64 values in memory, CSV columns on disk.
         declared = tuple(getattr(controller_class(scene.controller.type), "signals", ()))
         row_values = recorded_values(declared, reclaim=scene.stockpile is not None)
@@ -82,12 +91,26 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         cpu += run_periods * PILE_PERIOD_S if cells else 0.0
         cpu += FILES_S + (PLOTS_S if plots else 0.0)
         peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES
-                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES))
+                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES + scan_bytes))
     runs = len(scenes)
     parallel = max(1, min(workers, math.ceil(runs / chunk)))
     disk += runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
     disk += pile_cells_written * PILE_FILE_CELL_BYTES
     return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
+
+
+def _scans(scene: Scene, duration: float, cells: int) -> tuple[float, float]:
+    """Bytes a run's scans and scanned pile take (the same in memory as in scans.npz and
+    survey.npz), and the s of CPU its scanners cost; 0 for a run that does not scan."""
+    scanners = planned_scanners(scene)
+    if not scanners:
+        return 0.0, 0.0
+    size, cpu = cells * SURVEY_CELL_BYTES, 0.0
+    for scanner in scanners:
+        scans = duration * min(scanner.rate, 1.0 / scene.simulation.control_period) + 1
+        size += scans * (scanner.rays * HIT_BYTES + SCAN_BYTES)
+        cpu += scans * (scanner.rays * SCAN_RAY_S + SCAN_S)
+    return size, cpu
 
 
 def _duration_of(scene: Scene) -> float:

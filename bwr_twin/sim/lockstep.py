@@ -28,6 +28,7 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
 from bwr_twin.errors import BwrError, SimulationError
 from bwr_twin.model.machine import AXES, Machine
+from bwr_twin.sensing.scanning import Scanning, active_scanners
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.observer import Observer
@@ -63,6 +64,7 @@ def lockstep_key(scene: Scene) -> tuple:
         sim.control_period,
         sim.record_period,
         scene.stockpile,
+        scene.sensing,
     )
 
 
@@ -155,6 +157,8 @@ class Lockstep:
             forces the drives applied in the last period; `failures` maps a run that stopped to why.
         path: a path scene's read-only (samples, 3) reference rows, or None.
         reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
+        scanning: the runs' scanners and the piles they know from them (bwr_twin.sensing), or
+            None without a stockpile or a scanner.
     """
 
     def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None,
@@ -187,6 +191,9 @@ class Lockstep:
         if surface is not None:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
             self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
+        scanners = active_scanners(scene, machine) if surface is not None else ()
+        self.scanning = (Scanning(scanners, surface, parameters.seed, period, self.reclaim.density,
+                                  keep_scans=observe) if scanners else None)
         self._observe = observe
         self._observer = observer = Observer(
             runs, self.samples, period, round(sim.record_period / period), machine,
@@ -261,6 +268,8 @@ class Lockstep:
         disturbance[...] = self._disturbances.forces.sample(k)
         phase = tracking.phase()
         reclaim = self.reclaim
+        if self.scanning is not None:  # the pile as dug until this period, seen from where the machine stands
+            self._scan(k, row.q)
         if reclaim is not None:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
@@ -296,6 +305,12 @@ class Lockstep:
                 observer.flush()
             plant.check_health()
 
+    def _scan(self, k: int, q: np.ndarray) -> None:
+        """Period k's scans, and the scanned piles of the runs whose wheel has just begun to cut."""
+        scanning, heights = self.scanning, self.reclaim.cutter.heights
+        if scanning.step(k, q, heights, self._plant.alive) and scanning.awaiting_first_cut:
+            scanning.note_first_cut(k * self.period, self.reclaim.conveyor.dug > 0, heights)
+
     def _stop_non_finite(self, command: np.ndarray) -> None:
         """Stop the runs whose drive forces are not finite: theirs, not the plant's, failure."""
         for run in np.flatnonzero(~np.isfinite(command).all(axis=1)):
@@ -326,6 +341,8 @@ class Lockstep:
             if self.reclaim is not None:
                 run_metrics["reclaim"] = {**self.reclaim.metrics(run),
                                           **self.tracking.reclaim_metrics(run, float(self.reclaim.density[run]))}
+            if self.scanning is not None:
+                run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),
@@ -341,6 +358,8 @@ class Lockstep:
                                          time=self.time, metrics=run_metrics)
             if self.reclaim is not None:
                 result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
+            if self.scanning is not None:
+                result.scan = self.scanning.record(run)
             results.append(result)
         return results
 

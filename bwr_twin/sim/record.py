@@ -62,6 +62,7 @@ class RunResult:
     controller_signals: dict[str, np.ndarray] = field(default_factory=dict)
     signal_schema: tuple[Signal, ...] = ()  # the controller's, in its order
     reclaim: ReclaimRecord | None = None  # the pile and the reclaim signals, if the scene has a stockpile
+    scan: Any = None  # bwr_twin.sensing.outputs.ScanRecord: the scans and the scanned pile, if the machine scans
 
     @property
     def cp_desired(self) -> np.ndarray:

@@ -1,0 +1,41 @@
+"""The random numbers of each run's scanners, from the run's seed alone.
+
+Each run draws from its own stream: the third child of its seed's SeedSequence (the first two
+are the disturbance forces' and the gusts', bwr_twin.sim.disturbances), and within it one child
+per scanner. So a run's scans do not depend on which runs share its lockstep, and adding a
+scanner leaves the disturbances unchanged. Every scan draws a standard normal (the range noise)
+and a uniform (the dropout) for every ray, hit or not, a block of scans at a time, so that the
+streams stay in step whatever the rays meet and memory stays bounded however long the run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+SCANNER_STREAM = 2  # the SeedSequence child of a run's seed the scanners draw from
+BLOCK = 64  # scans drawn at once: 2.6 s at 25 Hz
+
+
+class ScanNoise:
+    """One scanner's draws for every run: `at(n)` gives scan n's (runs, rays) standard normals
+    and uniforms in [0, 1). Scans must be asked for in increasing order."""
+
+    def __init__(self, seeds: Sequence[int], scanner_index: int, rays: int):
+        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SCANNER_STREAM,
+                                                                                          scanner_index)))
+                            for seed in seeds]
+        self._rays = rays
+        self._normal = np.empty((len(seeds), BLOCK, rays))
+        self._uniform = np.empty((len(seeds), BLOCK, rays))
+        self._start = None  # the first scan of the block drawn
+
+    def at(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        start = n - n % BLOCK
+        if start != self._start:
+            for run, generator in enumerate(self._generators):
+                generator.standard_normal(out=self._normal[run])
+                generator.random(out=self._uniform[run])
+            self._start = start
+        return self._normal[:, n - start], self._uniform[:, n - start]

@@ -1,0 +1,232 @@
+"""Each run's scanners in the loop: a scan when its period has passed, on the control period grid.
+
+A scanner's n-th scan is due at n / rate s; it is made at the first control period at or after
+that time (a scanner faster than the control rate scans once a control period). A scan casts
+the fan from the site's world pose for the run's true joint values at the period's start
+(bwr_twin.sensing.scanner), against the pile as that run has dug it until then
+(bwr_twin.sensing.raycast). A ray that meets nothing within the scanner's range is a miss; one
+that does has Gaussian range noise of standard deviation `constant + share x range` added, or is
+dropped with the dropout probability (bwr_twin.sensing.noise). Hits are world metres; a missed
+or dropped ray is NaN. The hits fill the run's scanned pile (bwr_twin.sensing.survey).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import BwrError, SceneError
+from bwr_twin.model.machine import Machine
+from bwr_twin.model.spec import compile_model
+from bwr_twin.sensing.noise import ScanNoise
+from bwr_twin.sensing.outputs import ScanLog, ScanRecord
+from bwr_twin.sensing.raycast import grid_of, ray_distance
+from bwr_twin.sensing.scanner import Scanner, read_scanners, site_pose
+from bwr_twin.sensing.survey import Survey
+from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
+from bwr_twin.textfile import version
+
+_DUE = 1e-9  # s: a scan due within this of a period's time is due at that period (rounding of n / rate)
+_VERTICAL = 1e-12  # the largest upward part of a fan plane's normal for which the plane counts as upright
+_BACK_OFF = 1e-6  # m a ray's walk begins short of the last hit's reach: rounding may put both in one cell
+
+
+def active_scanners(scene: Scene, machine: Machine) -> tuple[Scanner, ...]:
+    """The scanners a scene's runs scan with: the machine's, if the scene has a stockpile and its
+    [sensing] does not turn them off. Raises SceneError if it turns them on for a machine without."""
+    wanted = scene.sensing.scanners
+    if scene.stockpile is None or wanted is False:
+        return ()
+    if wanted and not machine.scanners:
+        raise SceneError(f"{scene.path}: 'sensing.scanners' is true, but {machine.path} has no scanner site "
+                         "(a <site> named 'scanner...' with its custom numerics, docs/sensing.md)")
+    return machine.scanners
+
+
+def planned_scanners(scene: Scene) -> tuple[Scanner, ...]:
+    """The scanners a scene's runs will scan with, read from its MJCF without the run's other
+    edits (for estimates); () if the file cannot be read: the run itself will say why."""
+    if scene.stockpile is None or scene.sensing.scanners is False:
+        return ()
+    try:
+        return _file_scanners(scene.machine.mjcf, version(scene.machine.mjcf))
+    except BwrError:
+        return ()
+
+
+@functools.lru_cache(maxsize=8)
+def _file_scanners(mjcf, stamp: tuple) -> tuple[Scanner, ...]:
+    """The file's scanners, read once per version of it (`stamp`: a sweep estimates many runs)."""
+    return read_scanners(compile_model(mjcf), mjcf)
+
+
+class Scanning:
+    """The scanners of a lockstep's runs, their scans so far and the piles the runs know from them.
+
+    Attributes:
+        scanners: the machine's scanners the runs scan with.
+        survey: each run's scanned pile.
+        scans, rays, hits, dropped: (runs,) scans made, rays cast, rays that returned a hit and
+            rays that met the pile but were dropped, so far.
+    """
+
+    def __init__(self, scanners: Sequence[Scanner], surface: Surface, seeds: Sequence[int], period: float,
+                 density: np.ndarray, *, keep_scans: bool = True):
+        """`seeds` and `density` (kg/m^3): each run's; `keep_scans=False` keeps only the latest scan
+        (a lockstep that keeps no results: its memory stays bounded)."""
+        runs = len(seeds)
+        self.scanners, self.surface, self.period = tuple(scanners), surface, period
+        self.density = np.asarray(density, dtype=float)
+        self.survey = Survey(surface, runs, sum(s.rays for s in scanners))
+        # Heights only fall: the top a ray must consider is the pile's first.
+        self._grid = grid_of(surface.x, surface.y, surface.z, YARD_FLOOR, float(surface.z.max()))
+        self._noise = [ScanNoise(seeds, i, s.rays) for i, s in enumerate(scanners)]
+        self._directions = [np.ascontiguousarray(s.directions) for s in scanners]
+        self._settings = [np.array([s.max_range, s.noise[0], s.noise[1], s.dropout]) for s in scanners]
+        self.logs = [ScanLog(runs, s.rays, keep_scans) for s in scanners]
+        self._due = [0] * len(scanners)  # each scanner's next scan's number (due at number / rate)
+        self._next = [0] * len(scanners)  # the control period it is made at
+        self._soonest = 0
+        # Per run: scans made, rays cast, rays that hit, rays that met the pile but were dropped.
+        self._counts = np.zeros((runs, 4), dtype=np.int64)
+        self.scans, self.rays, self.hits, self.dropped = self._counts.T
+        self._all = np.arange(runs)
+        self.first_cut: list[dict | None] = [None] * runs  # the scanned pile when the run's wheel first cut
+
+    def step(self, k: int, q: np.ndarray, heights: np.ndarray, runs: np.ndarray | None) -> bool:
+        """Scan with every scanner due at control period k, the runs' true joint values q (runs, 3)
+        at its start, against their piles' heights (runs, ny, nx) m; only the `runs` given (None:
+        all). Returns whether any scanned."""
+        if k < self._soonest:
+            return False
+        order = self._all if runs is None else runs
+        time = k * self.period
+        made = []
+        for i, scanner in enumerate(self.scanners):
+            if k < self._next[i]:
+                continue
+            log, mount = self.logs[i], scanner.mount
+            normal, uniform = self._noise[i].at(log.count)
+            origin, hits = log.next_scan(time)
+            _scan(heights, self._grid, order, q, mount.position, mount.rotation, mount.joints, mount.anchor,
+                  mount.axis, self._directions[i], self._settings[i], normal, uniform, origin, hits, self._counts)
+            made.append(hits)
+            self._due[i] = math.floor(time * scanner.rate + _DUE) + 1
+            self._next[i] = math.ceil((self._due[i] / scanner.rate - _DUE) / self.period)
+        self._soonest = min(self._next)
+        if made:
+            self.survey.add(time, made[0] if len(made) == 1 else np.concatenate(made, axis=1), order)
+        return bool(made)
+
+    @property
+    def awaiting_first_cut(self) -> bool:
+        """Whether a run's wheel has yet to cut."""
+        return None in self.first_cut
+
+    def note_first_cut(self, time: float, cut: np.ndarray, heights: np.ndarray) -> None:
+        """Keep the scanned pile's tonnes against the truth (heights (runs, ny, nx) m) for the
+        runs whose wheel has cut (`cut` (runs,) bool) and had not before, at `time` s."""
+        for run in np.flatnonzero(cut):
+            if self.first_cut[run] is None:
+                self.first_cut[run] = {"time_s": time, **self.survey.tonnes(run, heights[run], self.density[run])}
+
+    def metrics(self, run: int, heights: np.ndarray) -> dict:
+        """metrics.json's `scan` object of `run`, whose pile now stands at heights (ny, nx) m."""
+        rays = int(self.rays[run])
+        return {
+            "scanners": [s.name for s in self.scanners],
+            "scans": int(self.scans[run]),
+            "rays": rays,
+            "hit_share": int(self.hits[run]) / rays if rays else None,
+            "dropped_share": int(self.dropped[run]) / met if (met := int(self.hits[run] + self.dropped[run])) else None,
+            **self.survey.tonnes(run, heights, self.density[run]),
+            "first_cut": self.first_cut[run],
+        }
+
+    def record(self, run: int) -> ScanRecord:
+        """Run `run`'s scans and its scanned pile at the end."""
+        survey = self.survey
+        return ScanRecord.of(self.scanners, [log.share(run) for log in self.logs], self.surface.x, self.surface.y,
+                             survey.z[run].copy(), survey.seen[run].copy(), survey.last_seen[run].copy())
+
+
+@numba.njit(cache=True)
+def _scan(heights, grid, runs, q, position0, rotation0, joints, anchor, axis, directions, settings, normal, uniform,
+          origin, hits, counts):  # pragma: no cover - compiled
+    """One scan of one scanner for each of `runs` at their joints q (runs, 3): the site's pose
+    (scanner.site_pose of its mount), the rays, noise and dropouts on their ranges. Writes
+    origin (runs, 3) and hits (runs, rays, 3) world m, NaN where missed or dropped, and adds to
+    counts (runs, 4): scans, rays, hits, dropped.
+
+    A fan in a vertical plane meets the pile's section along that plane, a height profile: of
+    two rays on one side of the site, the one above the other meets it no nearer to the site's
+    foot (until the lower one meets it, the upper one passes above it too). So each ray's walk
+    begins where the last ray below it met the pile, and a scan walks the section about once,
+    not once a ray. Each side's rays are taken outwards from the vertical (the fan's angles turn
+    one way, so its order or the reverse); a ray not above the last hit's starts from the site."""
+    max_range, constant, share, dropout = settings[0], settings[1], settings[2], settings[3]
+    m = np.empty((3, 3))
+    rays = directions.shape[0]
+    world = np.empty((rays, 4))  # each ray's world direction, and how far out it points along the plane
+    for run in runs:
+        site_pose(q[run], position0, rotation0, joints, anchor, axis, origin[run], m)
+        px, py, pz = origin[run, 0], origin[run, 1], origin[run, 2]
+        counts[run, 0] += 1
+        counts[run, 1] += rays
+        vertical = abs(m[2, 1]) < _VERTICAL  # the fan's plane (its normal: the site's y axis) stands upright
+        wx, wy = m[1, 1], -m[0, 1]  # a horizontal direction in that plane: the site's y x world z
+        norm = math.hypot(wx, wy)
+        if norm > 0.0:
+            wx, wy = wx / norm, wy / norm
+        for i in range(rays):
+            a, b, c = directions[i, 0], directions[i, 1], directions[i, 2]
+            world[i, 0] = m[0, 0] * a + m[0, 1] * b + m[0, 2] * c
+            world[i, 1] = m[1, 0] * a + m[1, 1] * b + m[1, 2] * c
+            world[i, 2] = m[2, 0] * a + m[2, 1] * b + m[2, 2] * c
+            world[i, 3] = world[i, 0] * wx + world[i, 1] * wy
+        for side in (1.0, -1.0):
+            # Outwards: in the fan's order if its last ray on this side points farther out than its first.
+            first, last = -1, -1
+            for i in range(rays):
+                if side * world[i, 3] > 0.0 or (side > 0 and world[i, 3] == 0.0):
+                    last = i
+                    if first < 0:
+                        first = i
+            if first < 0:
+                continue
+            outwards = _outness(world[last], side) >= _outness(world[first], side)
+            last_out = last_down = reach = 0.0  # the last hit ray's direction (out, down) and its reach, m
+            found = False
+            for n in range(first, last + 1):
+                i = n if outwards else first + last - n
+                out = side * world[i, 3]  # out from the site's foot along the plane, this side
+                if out < 0.0 or (out == 0.0 and side < 0):
+                    continue  # the other side's (a vertical ray is the first side's)
+                dx, dy, dz = world[i, 0], world[i, 1], world[i, 2]
+                begin = 0.0
+                if vertical and found and out > 0.0 and last_out * dz - last_down * out >= 0.0:  # above the last
+                    begin = max(reach - _BACK_OFF, 0.0) / out
+                distance = ray_distance(heights[run], grid, px, py, pz, dx, dy, dz, max_range, begin)
+                if np.isnan(distance):
+                    continue  # the hits are NaN until written
+                last_out, last_down, reach, found = out, dz, distance * out, True
+                if uniform[run, i] < dropout:
+                    counts[run, 3] += 1
+                    continue
+                measured = max(distance + normal[run, i] * (constant + share * distance), 0.0)
+                hits[run, i, 0] = px + measured * dx
+                hits[run, i, 1] = py + measured * dy
+                hits[run, i, 2] = pz + measured * dz
+                counts[run, 2] += 1
+
+
+@numba.njit(cache=True, inline="always")
+def _outness(direction, side):  # pragma: no cover - compiled
+    """How far a ray's direction (x, y, z, out along the fan's plane) turns from straight down
+    towards `side` (+1 or -1) of the plane, rad."""
+    return math.atan2(side * direction[3], -direction[2])
