@@ -100,3 +100,4 @@ def main(path: str, check: str, *arguments: str) -> None:
 
 if __name__ == "__main__":
     main(*sys.argv[1:])
+    fmu_pid.exit_now()  # as the example does: docs/fmu.md, known limits

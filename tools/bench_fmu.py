@@ -96,3 +96,4 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+    fmu_pid.exit_now()  # as the example does: docs/fmu.md, known limits

@@ -20,7 +20,6 @@ address space names them:
 from __future__ import annotations
 
 import ctypes
-import gc
 import math
 import os
 from dataclasses import dataclass
@@ -276,10 +275,10 @@ class BwrReclaimer(Fmi2Slave):
         return False
 
     def terminate(self):
-        # The machine (its MuJoCo batch and threads) goes now, not whenever the collector finds
-        # the cycle the variables' getters make with this instance.
+        # The machine (its MuJoCo batch and threads) goes now, with the last reference to it. Not
+        # gc.collect() here: inside a pythonfmu call it frees objects pythonfmu's library still
+        # refers to, and the process's heap is corrupted (seen as a crash at exit).
         self._twin = None
-        gc.collect()
 
     def reset(self):
         self._start_values()
