@@ -1,5 +1,7 @@
 """The replay in a real headless Chromium: the page draws the machine, Play advances the time
-slider, and the exported HTML plays from a file:// URL. Screenshots go to test-artifacts/.
+slider, four controllers share one page and the chooser hides one, the charts' cursor follows the
+timeline and a click on a chart seeks it, and the exported HTML plays from a file:// URL, its
+charts' cursor following the playback. Screenshots go to test-artifacts/.
 
 The browser is Debian's `chromium`, driven by Python playwright (never `playwright install`).
 Without it these tests skip and say why; with CI=true a missing browser fails them instead.
@@ -95,23 +97,24 @@ def until(condition, what: str) -> None:
         time.sleep(0.1)
 
 
-def machine_pixels(png: bytes, geoms) -> float:
-    """Share of the picture in the machine's commonest colour (any shade of it)."""
+def machine_pixels(png: bytes, geoms, tolerance: float = 0.04) -> float:
+    """Share of the picture in the machine's commonest colour (any shade of it; `tolerance` in
+    chromaticity, wider for a machine seen through translucent ones)."""
     from PIL import Image
 
     rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
     colour = np.array(Counter(g.rgba[:3] for g in geoms).most_common(1)[0][0])
     chromaticity = rgb / np.maximum(rgb.sum(axis=2, keepdims=True), 1.0)
-    close = np.linalg.norm(chromaticity - colour / colour.sum(), axis=2) < 0.04
+    close = np.linalg.norm(chromaticity - colour / colour.sum(), axis=2) < tolerance
     return float(np.mean(close & (rgb.sum(axis=2) > 60)))
 
 
-def screenshot_showing_machine(page, geoms, name: str) -> bytes:
+def screenshot_showing_machine(page, geoms, name: str, tolerance: float = 0.04) -> bytes:
     """A screenshot, saved to test-artifacts/, once the machine's colour shows (the page fades in)."""
     deadline = time.monotonic() + WAIT_MS / 1000
     while True:
         png = page.screenshot(timeout=WAIT_MS)
-        if machine_pixels(png, geoms) > MACHINE_SHARE or time.monotonic() > deadline:
+        if machine_pixels(png, geoms, tolerance) > MACHINE_SHARE or time.monotonic() > deadline:
             break
         time.sleep(1.0)
     ARTIFACTS.mkdir(exist_ok=True)
@@ -143,42 +146,125 @@ def test_page_renders_the_machine_and_play_advances_time(browser, recording):
             page.close()
 
 
-def test_a_second_controller_rides_along_as_a_translucent_ghost(browser, recording, tmp_path):
+CONTROLLERS = ("paper_shared_gain", "pid_paper", "computed_torque_paper")  # beside the individual gains
+TINTED = 0.1  # chromaticity tolerance for the solid machine seen through three translucent ones
+
+
+def changed_pixels(before: bytes, after: bytes) -> float:
+    """Share of the picture whose colour changed by more than a shade."""
+    from PIL import Image
+
+    a, b = (np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float) for png in (before, after))
+    return float(np.mean(np.abs(a - b).sum(axis=2) > 30))
+
+
+@pytest.fixture(scope="module")
+def four_runs(recording, tmp_path_factory):
+    """The short path under four controllers: the individual gains' run first, as Runs."""
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.replay.runs import Run
     from bwr_twin.results.rundir import write_run
     from bwr_twin.sim.lockstep import simulate
 
-    pid = load_scene(SCENES / "pid_paper.toml").controller.to_dict()
-    pid = {k: list(v) if isinstance(v, tuple) else v for k, v in pid.items()}
-    scene = load_scene(SCENES / "paper_individual_gains.toml", {"path.via_points": SHORT_VIA_POINTS, "controller": pid})
-    write_run(simulate(scene), tmp_path / "pid", plots=False)
-    ghost = Recording.from_run_dir(tmp_path / "pid")
-    with ReplayServer(recording, port=0, ghost=(ghost, "pid")) as server:
+    folder = tmp_path_factory.mktemp("four")
+    runs = [Run(recording, "paper_individual_gains")]
+    for name in CONTROLLERS:
+        table = load_scene(SCENES / f"{name}.toml").controller.to_dict()
+        table = {k: list(v) if isinstance(v, tuple) else str(v) if hasattr(v, "parts") else v for k, v in table.items()}
+        scene = load_scene(SCENES / "paper_individual_gains.toml",
+                           {"path.via_points": SHORT_VIA_POINTS, "controller": table})
+        write_run(simulate(scene), folder / name, plots=False)
+        runs.append(Run(Recording.from_run_dir(folder / name), name))
+    return runs
+
+
+@pytest.fixture(scope="module")
+def four_runs_page(browser, four_runs):
+    """The four runs served, and one page that shows them all (the first solid, the rest translucent)."""
+    first, *others = four_runs
+    with ReplayServer(first.recording, port=0, name=first.name, others=others) as server:
         page = browser.new_page()
         try:
             page.goto(server.url)
-            moving = {n for n, m in zip(server.view.poser.names, server.view.poser.moving) if m}
-            ghost_triangles = sum(len(g.faces) for g in server.view.geoms if g.body in moving)
-            machine_triangles = sum(len(g.faces) for g in server.view.geoms)
-            page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {machine_triangles + ghost_triangles}",
-                                   timeout=WAIT_MS, polling=100)
-            expect(page.get_by_text("Translucent: pid")).to_be_visible(timeout=WAIT_MS)
-            server.player.seek(10.0)
-            # Each machine stands where its own run stood at 10 s.
-            pairs = ((server.view.ghost, ghost), (server.view, recording))
-            until(lambda: all(stands_at(view, run, 10.0) for view, run in pairs), "each machine at its run's 10 s")
-            screenshot_showing_machine(page, server.view.geoms, "replay_ghost.png")
-            assert not np.allclose(ghost.at(10.0).q_actual, recording.at(10.0).q_actual)
+            machines = server.view.machines
+            triangles = sum(len(g.faces) for g in server.view.geoms) + sum(
+                len(g.faces) for machine in machines[1:] for g in machine.geoms)
+            page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {triangles}", timeout=WAIT_MS, polling=100)
+            yield server, page
         finally:
             page.close()
 
 
-def stands_at(view, run, t: float) -> bool:
-    """Whether the replay's machine (or its ghost) stands where `run` stood at time t."""
-    positions, _ = view.poser.poses(run.at(t).q_actual)
-    frames = view.bodies if isinstance(view.bodies, list) else [view.bodies.get(n) for n in view.poser.names]
-    return all(np.allclose(frame.position, expected, atol=1e-6)
-               for frame, expected in zip(frames, positions) if frame is not None)
+# Each run's machine hangs under the scene node /runs/<k>: the page's scene tree says which it shows.
+RUNS_SHOWN = """() => Object.entries(window.__viserSceneTree?.getState() ?? {})
+    .filter(([name]) => /^\\/runs\\/\\d+$/.test(name))
+    .map(([name, node]) => [name, node.visibility !== false])"""
+
+
+def test_four_controllers_share_one_world_and_the_chooser_hides_one(four_runs_page, four_runs):
+    server, page = four_runs_page
+    boxes = page.get_by_role("checkbox")
+    expect(boxes).to_have_count(4, timeout=WAIT_MS)
+    for k, run in enumerate(four_runs):
+        expect(boxes.nth(k)).to_be_checked(timeout=WAIT_MS)
+        expect(page.get_by_text(run.label)).to_be_visible(timeout=WAIT_MS)
+    assert sorted(page.evaluate(RUNS_SHOWN)) == [[f"/runs/{k}", True] for k in range(4)]
+    server.player.seek(10.0)
+    # Each machine stands where its own run stood at 10 s.
+    until(lambda: all(stands_at(m, run.recording, 10.0) for m, run in zip(server.view.machines, four_runs)),
+          "each machine at its run's 10 s")
+    assert not np.allclose(four_runs[1].recording.at(10.0).q_actual, four_runs[0].recording.at(10.0).q_actual)
+    geoms = server.view.geoms
+    four = screenshot_showing_machine(page, geoms, "replay_four_runs.png", TINTED)
+    assert machine_pixels(four, geoms, TINTED) > MACHINE_SHARE  # the solid machine, seen through the others
+    readout_row = page.locator("td", has_text="pid_paper")  # its row in the readout's table
+    expect(readout_row).to_have_count(1, timeout=WAIT_MS)
+
+    click(boxes.nth(2))  # pid_paper
+    until(lambda: server.player.shown == [True, True, False, True], "the player hiding run 3")
+    page.wait_for_function(f"() => JSON.stringify(({RUNS_SHOWN})().sort()) === "
+                           f"JSON.stringify([['/runs/0', true], ['/runs/1', true], ['/runs/2', false], ['/runs/3', true]])",
+                           timeout=WAIT_MS, polling=100)
+    # Its translucent machine lay over the others: without it, the machine's pixels change.
+    deadline = time.monotonic() + WAIT_MS / 1000
+    while changed_pixels(four, three := page.screenshot(timeout=WAIT_MS)) < MACHINE_SHARE:
+        assert time.monotonic() < deadline, "hiding a run changed nothing on the canvas"
+    (ARTIFACTS / "replay_three_runs.png").write_bytes(three)
+    chart = server.player.panel.chart_handles[0]  # position error, travel: a line per run shown
+    assert [series["label"].split(" [")[0] for series in chart.series[1:]] == [
+        "paper_individual_gains", "paper_shared_gain", "computed_torque_paper"]
+    expect(readout_row).to_have_count(0, timeout=WAIT_MS)  # gone from the readout
+    click(boxes.nth(2))
+    until(lambda: all(server.player.shown), "the player showing run 3 again")
+
+
+CURSOR = "document.querySelector('.bwr-time-cursor')"
+
+
+def test_the_charts_cursor_follows_the_timeline_and_a_click_seeks_it(four_runs_page):
+    server, page = four_runs_page
+    lefts = []
+    for t in (5.0, 15.0):
+        server.player.seek(t)
+        page.wait_for_function(f"() => {CURSOR}?.dataset.time === '{t:g}'", timeout=WAIT_MS, polling=100)
+        lefts.append(page.evaluate(f"() => parseFloat({CURSOR}.style.left)"))
+    expected = page.evaluate("""() => { const c = Object.values(window.__viserTestpoints.uplots)[0].chart;
+                                        return [c.valToPos(5, 'x'), c.valToPos(15, 'x')]; }""")
+    assert lefts == pytest.approx(expected, abs=1.0) and lefts[1] > lefts[0] + 20
+    # A click at 12 s on the first chart seeks there.
+    chart = page.locator(".uplot-container .u-over").first
+    chart.scroll_into_view_if_needed(timeout=WAIT_MS)
+    x = page.evaluate("() => Object.values(window.__viserTestpoints.uplots)[0].chart.valToPos(12, 'x')")
+    box = chart.bounding_box(timeout=WAIT_MS)
+    page.mouse.click(box["x"] + x, box["y"] + box["height"] / 2)
+    until(lambda: abs(server.player.time - 12.0) < 0.3, "the click's seek to 12 s")
+    page.wait_for_function(f"() => Math.abs(Number({CURSOR}?.dataset.time) - 12) < 0.3", timeout=WAIT_MS)
+
+
+def stands_at(machine, run, t: float) -> bool:
+    """Whether a run's machine in the replay stands where `run` stood at time t."""
+    positions, _ = machine.poser.poses(run.at(t).q_actual)
+    return all(np.allclose(frame.position, positions[i], atol=1e-6) for frame, i in zip(machine.bodies, machine.moving))
 
 
 # The short path over four of WAIT_MS: played at the slowest speed (1 x real time), the run cannot
@@ -238,6 +324,34 @@ def test_export_plays_from_a_file_url(browser, recording, tmp_path):
         page.close()
 
 
+def test_an_export_of_four_runs_charts_them_beside_the_scene_with_a_cursor_that_seeks(browser, four_runs,
+                                                                                       tmp_path):
+    first, *others = four_runs
+    out = tmp_path / "four.html"
+    export_html(first.recording, out, name=first.name, others=others)
+    geoms = visual_geoms(first.recording.plan.machine)
+    page = browser.new_page()
+    page.set_viewport_size({"width": 960, "height": 600})  # software WebGL draws a playing scene slowly
+    try:
+        page.goto(out.resolve().as_uri())
+        wait_for_machine(page, geoms)
+        expect(page.locator("#bwr-charts .bwr-chart")).to_have_count(9, timeout=WAIT_MS)  # 3 quantities x 3 axes
+        # The recording plays: the cursor follows its time.
+        page.wait_for_function(f"() => Number({CURSOR}?.dataset.time) > 1", timeout=WAIT_MS, polling=100)
+        plot = page.locator("#bwr-charts .bwr-plot").first
+        box = plot.bounding_box(timeout=WAIT_MS)
+        page.mouse.click(box["x"] + 0.75 * box["width"], box["y"] + 0.5 * box["height"])  # at 15 s of 20
+        page.wait_for_function(f"() => Math.abs(Number({CURSOR}.dataset.time) - 15) < 0.2", timeout=WAIT_MS,
+                               polling=100)
+        # The playback paused there: at 1.5 s of the recording, which plays the run at 10x.
+        playback = "Number(document.querySelector('[role=slider]').getAttribute('aria-valuenow'))"
+        page.wait_for_function(f"() => Math.abs({playback} - 1.5) < 0.02", timeout=WAIT_MS, polling=100)
+        png = screenshot_showing_machine(page, geoms, "export_four_runs.png", TINTED)
+        assert machine_pixels(png, geoms, TINTED) > MACHINE_SHARE
+    finally:
+        page.close()
+
+
 def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
     from test_stockpile import SHORT_DIG
 
@@ -255,7 +369,7 @@ def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
         page = browser.new_page()
         try:
             page.goto(server.url)
-            tiles = server.view.pile._tiles
+            tiles = server.view.sites[0].pile._tiles
             pile_triangles = sum(len(t._ore.faces) + len(t._cut.faces) for t in tiles)
             machine_triangles = sum(len(g.faces) for g in server.view.geoms)
             page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {machine_triangles + pile_triangles}",
@@ -264,7 +378,7 @@ def test_the_pile_is_dug_as_the_replay_plays(browser, tmp_path):
             server.player.seek(float(dig.plan.time[-1]))
             until(lambda: any(len(t._cut.faces) > 1 for t in tiles), "a tile sent again as dug")
             cut = [t for t in tiles if len(t._cut.faces) > 1]
-            start, tile = server.view.pile._start, cut[0]
+            start, tile = server.view.sites[0].pile._start, cut[0]
             assert (start[tile.rows, tile.cols].ravel() - tile._cut.vertices[:, 2]).max() > 0.3  # m lower than it stood
             screenshot_showing_machine(page, server.view.geoms, "replay_pile_dug.png")
             server.player.seek(0.0)  # back in time: the pile stands whole again

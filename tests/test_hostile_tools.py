@@ -171,7 +171,7 @@ REFUSALS = [
      r"timeseries.csv: row 7, column 'time_s': 'abc' is not a number"),
     ("replay-ghost-on-another-path", "replay",
      lambda t, r: [r, "--ghost", damaged_run(t, r, scene=True), "--export", "a.html"],
-     r"damaged: --ghost follows another path than the replay: via point P2 \(t = 20 s\) at \(.*\) m against"),
+     r"damaged: not the machine and path of .*: via point P2 \(t = 20 s\) at \(.*\) m against"),
     # 12. Messages: argparse's errors, one line
     ("argparse-run", "run", lambda t, r: ["short.toml"], r"python -m bwr_twin.run: the following arguments are "
      r"required: --out \(see python -m bwr_twin.run --help\)"),

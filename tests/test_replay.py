@@ -1,6 +1,7 @@
 """The web replay: every visual geom of any machine becomes one scene node of MuJoCo's size, posed
 by MuJoCo's own kinematics; the server binds locally, serves and frees its port; the timeline
-plays; the offline export stays small. Browser checks are in test_browser.py."""
+plays; several runs load from run directories and compare or batch folders, or are refused with
+one line; the offline export stays small. Browser checks are in test_browser.py."""
 
 import os
 import shutil
@@ -19,7 +20,7 @@ from conftest import HEAVY_MJCF, PAPER_MJCF, ROOT, SCENES, SHORT_VIA_POINTS, VAR
 from bwr_twin import Machine
 from bwr_twin.model.machine import paper_to_world
 from bwr_twin.replay import Plan, Recording, ReplayServer, export_html, readout
-from bwr_twin.replay.charts import MARKER_TOP, charts
+from bwr_twin.replay.charts import charts
 from bwr_twin.replay.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.replay.recording import cache_key
 from bwr_twin.replay.scenery import ANGLE_OF_REPOSE, CREST_HEIGHT_FRACTION, stockpile
@@ -79,8 +80,7 @@ def test_one_node_per_visual_geom_with_mujoco_sizes(mjcf):
     model = machine.model
     visual = [g for g in range(model.ngeom) if model.geom_group[g] == VISUAL_GROUP]
     with ReplayServer(Plan.from_scene(_scene_for(mjcf)), port=0) as server:
-        nodes = server.view.geom_nodes
-        geoms = server.view.geoms
+        geoms, nodes = zip(*server.view.drawn_geoms())
         assert len(nodes) == len(geoms) == len(visual) > 0
         for geom, node, g in zip(geoms, nodes, visual):
             assert geom.name == (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}")
@@ -222,7 +222,7 @@ def test_close_via_points_share_one_label_and_each_is_named_once(paper_machine):
 
 
 def test_slider_labels_via_points_that_do_not_crowd_each_other():
-    from bwr_twin.replay.app import via_point_marks
+    from bwr_twin.replay.panel import via_point_marks
 
     names = [f"P{i + 1}" for i in range(5)]
     assert via_point_marks([0.0, 200.0, 300.0, 500.0, 700.0], names) == tuple(
@@ -232,6 +232,14 @@ def test_slider_labels_via_points_that_do_not_crowd_each_other():
     # A bench plan's unnamed via points (travel steps) are marked, never labelled.
     assert via_point_marks([0.0, 100.0, 900.0], ["bench 1", "", "pass 1"]) == ((0.0, "bench 1"), 100.0,
                                                                                (900.0, "pass 1"))
+    # A bench plan's passes, ten in a row: "bench 1pass 1pass 2..." would print over each other.
+    times = [0.0, 20.0, *(100.0 * k for k in range(1, 11)), 1136.0]
+    names = ["bench 1", "", *(f"pass {k}" for k in range(1, 11)), "end"]
+    labels = [mark[1] for mark in via_point_marks(times, names) if isinstance(mark, tuple)]
+    assert labels[0] == "bench 1" and len(labels) <= 6 and "pass 1" not in labels  # every other pass at most
+    benches = via_point_marks(times, names, labelled={"bench 1", "end"})
+    assert [m for m in benches if isinstance(m, tuple)] == [(0.0, "bench 1"), (1136.0, "end")]
+    assert len(benches) == len(times)  # every via point keeps its mark
 
 
 # -- recordings, readout, charts --------------------------------------------------------------
@@ -273,12 +281,13 @@ def test_readout_shows_engineering_units(short_recording):
     assert "t = 10.0 s" in readout.as_text(instant, 20.0)
 
 
-def test_chart_marker_stands_at_the_current_time(short_recording):
+def test_one_runs_charts_hold_its_axes_sampled_once_a_second(short_recording):
     for chart in charts(short_recording):
-        x, *series, marker = chart.data(7.3)
-        assert len(series) == len(chart.values) and all(len(s) == len(x) for s in series)
-        assert np.all(np.diff(x) >= 0) and np.all(np.isfinite(np.concatenate(series)))
-        assert x[np.argmax(marker)] == 7.3 and marker.max() == MARKER_TOP
+        x, *series = chart.data([True])
+        assert len(series) == len(chart.lines) == len(chart.series([True])) - 1
+        assert all(len(s) == len(x) == 21 for s in series)  # 20 s, a point a second
+        assert np.all(np.diff(x) > 0) and np.all(np.isfinite(np.concatenate(series)))
+        assert chart.ranges([True]) == chart.scales  # uPlot fits one run's scales itself
 
 
 def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, short_recording):
@@ -286,11 +295,11 @@ def test_error_charts_are_the_papers_errors_in_engineering_units(short_run, shor
     position, velocity, _ = charts(short_recording)
     assert "Position error" in position.title and "Velocity error" in velocity.title
     at = np.searchsorted(result.time, position.time[-1])  # the last charted sample, t = 20 s
-    assert position.values[0][-1] == pytest.approx(result.q_desired[at, 0] - result.q[at, 0], abs=1e-9)
-    assert velocity.values[1][-1] == pytest.approx(
+    assert position.lines[0].values[-1] == pytest.approx(result.q_desired[at, 0] - result.q[at, 0], abs=1e-9)
+    assert velocity.lines[1].values[-1] == pytest.approx(
         np.degrees(result.qd_desired[at, 1] - result.qd[at, 1]), abs=1e-9
     )
-    assert velocity.series[2]["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel [m/s]"
+    assert velocity.lines[1].series["label"] == "slew [deg/s]" and velocity.axes[1]["label"] == "travel [m/s]"
 
 
 def test_cache_key_follows_what_decides_the_run(short_scene, tmp_path, monkeypatch):
@@ -391,7 +400,7 @@ def test_timeline_plays_pauses_and_jumps(short_recording):
 
 def test_preview_shows_the_machine_before_the_recording(short_scene, short_recording):
     with ReplayServer(Plan.from_scene(short_scene), port=0) as server:
-        assert server.player is None and len(server.view.geom_nodes) > 0
+        assert server.player is None and len(server.view.machines[0].nodes) > 0
         server.load(short_recording)
         assert server.player is not None and server.player.time == 0.0
 
@@ -540,3 +549,249 @@ def test_export_of_the_digging_reclaim_fits_in_5_mb(tmp_path):
     proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr
     assert "403 s reclaim" in proc.stdout and out.stat().st_size <= EXPORT_LIMIT  # the pile's tiles included
+
+
+# -- several runs -------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def compare_dir(short_run, tmp_path_factory):
+    """A folder as bwr_twin.compare or a batch leaves it: three run directories (the short run under
+    three names), a failed run's folder and the comparison's own files."""
+    folder = tmp_path_factory.mktemp("compare")
+    for name in ("b-seed=1", "a-seed=1", "c-seed=1"):
+        shutil.copytree(short_run[0], folder / name)
+    (folder / "d-seed=1").mkdir()
+    (folder / "d-seed=1" / "error.txt").write_text("diverged\n")
+    shutil.copy(short_run[0] / "scene.json", folder / "d-seed=1")
+    (folder / "comparison.csv").write_text("controller,axis\nb,travel\nb,slew\na,travel\nc,travel\n")
+    return folder
+
+
+def _moved(run_dir, tmp_path, name, edit):
+    """A copy of `run_dir` whose scene.json is passed through `edit`."""
+    import json
+
+    copy = tmp_path / name
+    shutil.copytree(run_dir, copy)
+    scene = json.loads((copy / "scene.json").read_text())
+    edit(scene)
+    (copy / "scene.json").write_text(json.dumps(scene))
+    return copy
+
+
+def test_a_compare_or_batch_folder_gives_its_run_directories_by_name(compare_dir, tmp_path):
+    from bwr_twin.replay.runs import choose_runs, load_runs, run_folders
+
+    # In the comparison's order of controllers; not the failed run.
+    assert [f.name for f in run_folders(compare_dir)] == ["b-seed=1", "a-seed=1", "c-seed=1"]
+    assert run_folders(compare_dir / "a-seed=1") == [compare_dir / "a-seed=1"]
+    chosen = choose_runs([compare_dir], ["c*", "a-seed=1"])
+    assert [f.name for f in chosen] == ["a-seed=1", "c-seed=1"]
+    runs = load_runs(chosen)
+    assert [run.label for run in runs] == ["a-seed=1 (fuzzy_model)", "c-seed=1 (fuzzy_model)"]
+    # One folder named twice is one run; the same name in two folders is told apart by the folder's.
+    assert choose_runs([compare_dir / "a-seed=1", compare_dir / "b-seed=1" / ".." / "a-seed=1"]) == [
+        compare_dir / "a-seed=1"]
+    shutil.copytree(compare_dir / "a-seed=1", tmp_path / "other" / "a-seed=1")
+    twice = load_runs(choose_runs([compare_dir / "a-seed=1", tmp_path / "other"]))
+    assert [run.name for run in twice] == [f"{compare_dir.name}/a-seed=1", "other/a-seed=1"]
+
+
+def test_more_than_8_runs_or_a_selection_of_none_is_refused(compare_dir, tmp_path):
+    from bwr_twin import BwrError
+    from bwr_twin.replay.runs import MAX_RUNS, choose_runs
+
+    many = tmp_path / "batch"
+    many.mkdir()
+    for k in range(MAX_RUNS + 1):
+        shutil.copytree(compare_dir / "a-seed=1", many / f"{k:04d}-seed={k + 1}")
+    with pytest.raises(BwrError, match=r"batch: 9 runs, more than the 8 one replay shows; choose at most 8 with --runs"):
+        choose_runs([many])
+    assert len(choose_runs([many], ["000[0-7]-*"])) == MAX_RUNS
+    with pytest.raises(BwrError, match=r"--runs 000\*: 9 runs, more than the 8"):
+        choose_runs([many], ["000*"])
+    with pytest.raises(BwrError, match=r"--runs 000\[0-7\]-\*: 9 runs, more than the 8 .*choose at most 7 with"):
+        choose_runs([many], ["000[0-7]-*"], also=1)  # beside a scene's run: 7 more at most
+    with pytest.raises(BwrError, match=r"--runs seed=9,x\*: matches none of the 3 runs in .*compare.* \(b-seed=1, "):
+        choose_runs([compare_dir], ["seed=9", "x*"])
+
+
+def test_runs_of_another_path_or_machine_are_refused_naming_the_folder(short_run, tmp_path):
+    from bwr_twin import BwrError
+    from bwr_twin.replay.runs import check_one_world, load_runs
+
+    def shift(scene):
+        scene["trajectory"]["via_points"][1]["p"][0] -= 1.0
+
+    def machine(scene):
+        scene["machine"]["mjcf"] = str(VARIANT_MJCF)
+
+    other_path = _moved(short_run[0], tmp_path, "moved", shift)
+    other_machine = _moved(short_run[0], tmp_path, "variant", machine)
+    folders = [short_run[0], short_run[0], other_path]
+    plans = [run.recording.plan for run in load_runs(folders)]
+    with pytest.raises(BwrError, match=r"moved: not the machine and path of .*short: via point P2 \(t = 20 s\) at "
+                                       r"\(.*\) m against .*; --side-by-side shows them apart"):
+        check_one_world(plans, folders)
+    check_one_world(plans[:2], folders[:2])  # two runs of one path share a world
+    folders = [short_run[0], other_machine]
+    with pytest.raises(BwrError, match=r"variant: not the machine and path of .*short: machine .*bwr_variant.xml "
+                                       r"against .*bwr.xml"):
+        check_one_world([run.recording.plan for run in load_runs(folders)], folders)
+
+
+def test_side_by_side_runs_stand_in_a_row_spaced_by_what_each_draws(short_run, tmp_path):
+    from bwr_twin.replay.runs import load_runs
+
+    first, variant = load_runs([short_run[0], _moved(short_run[0], tmp_path, "variant",
+                                                     lambda s: s["machine"].update(mjcf=str(VARIANT_MJCF)))])
+    with ReplayServer(first.recording, port=0, others=[variant], side_by_side=True) as server:
+        view = server.view
+        assert len(view.sites) == 2 and view.site_of == [0, 1]
+        offset = np.asarray(view.machines[1].root.position)
+        assert offset[0] == 0 and offset[2] == 0 and np.array_equal(view.sites[1].frame.position, offset)
+        # The second run's lane starts beyond everything the first draws across the rail.
+        first_lane = np.concatenate([*view.sites[0].points, view.machines[0].vertices(first.recording.plan.q_desired[0])])
+        second_lane = view.machines[1].vertices(variant.recording.plan.q_desired[0]) + offset
+        side = view.sites[0].pile_side
+        assert (side * second_lane[:, 1]).min() > (side * first_lane[:, 1]).max()
+
+
+def test_several_runs_charts_overlay_them_and_fit_the_shown_ones(short_recording):
+    import dataclasses
+
+    off = dataclasses.replace(short_recording, q_actual=short_recording.q_actual + (0.5, 0.0, 0.0))
+    position_travel, *_ = charts([short_recording, off], ["near", "off"])
+    assert position_travel.title == "Position error, travel (desired - actual)"
+    assert [s["label"] for s in position_travel.series([True, True])[1:]] == ["near [m]", "off [m]"]
+    both = position_travel.ranges([True, True])["y"]["range"]
+    near = position_travel.ranges([True, False])["y"]["range"]
+    assert both[0] < -0.5 < near[0] and both[1] >= near[1]  # hiding the run 0.5 m off narrows the range
+    assert len(position_travel.data([True, False])) == 2  # x and the one run shown
+    trajectory = charts([short_recording, off], ["near", "off"])[-1]
+    assert [s["label"] for s in trajectory.series([False, True])[1:]] == ["desired [deg]", "off [deg]"]
+
+
+def test_several_runs_readout_gives_each_runs_errors_with_units(short_recording):
+    instant = short_recording.at(10.0)
+    text = readout.runs_markdown(10.0, [instant, instant], ["a", "b"], ["#eb5f14", "#5a6eff"], 20.0)
+    assert "| run | travel [m] | slew [deg] | luff [deg] |" in text and "t = 10.0 s** of 20 s" in text
+    travel = f"{instant.q_error[0]:+.4f}"
+    assert f'#eb5f14">&#9632;</span> a | {travel} |' in text and f"</span> b | {travel} |" in text
+    assert "no run shown" in readout.runs_markdown(10.0, [], [], [], 20.0)
+
+
+def test_the_chooser_hides_a_run_and_paints_the_machines(short_recording, tmp_path):
+    from bwr_twin.replay.machine_view import GHOST_OPACITY
+    from bwr_twin.replay.runs import Run
+
+    with ReplayServer(short_recording, port=0, name="short", others=[Run(short_recording, "again")]) as server:
+        player, view = server.player, server.view
+        first, second = view.machines
+        assert second.nodes[0].opacity == pytest.approx(GHOST_OPACITY)  # the second seen through
+        assert [box.label for box in player.panel.shown_boxes] == ["short (fuzzy_model)", "again (fuzzy_model)"]
+        player.show_run(1, False)
+        until(lambda: "again" not in player.readout.content, "run 2 gone from the readout")
+        assert not second.visible and len(player.panel.chart_handles[0].series) == 2  # x and run 1
+        player.paint(None)  # each in its own colour
+        until(lambda: first.nodes[0].color == first.colour, "run 1 in its colour")
+        assert first.nodes[0].opacity is None and second.nodes[0].color == second.colour
+
+
+def until(condition, what: str, timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"not within {timeout:g} s: {what}"
+        time.sleep(0.02)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (lambda d, t: [d["many"]], "many: 9 runs, more than the 8 one replay shows"),
+        (lambda d, t: [d["compare"], "--runs", "nothing*"], "--runs nothing*: matches none of the 3 runs in"),
+        (lambda d, t: [d["compare"] / "a-seed=1", d["moved"]], "moved: not the machine and path of"),
+        (lambda d, t: [d["compare"] / "a-seed=1", "--ghost", t], "--ghost must name a run directory"),
+        (lambda d, t: [d["compare"] / "a-seed=1", SCENES / "pid_paper.toml"], "only the first source may be a scene"),
+    ],
+    ids=["too-many", "none-selected", "another-path", "ghost-not-a-run", "scene-second"],
+)
+def test_cli_refuses_what_one_replay_cannot_show_with_one_line(compare_dir, short_run, tmp_path, args, message):
+    many = tmp_path / "many"
+    many.mkdir()
+    for k in range(9):
+        shutil.copytree(compare_dir / "a-seed=1", many / f"{k:04d}")
+    folders = {"many": many, "compare": compare_dir,
+               "moved": _moved(short_run[0], tmp_path, "moved", lambda s: s["trajectory"]["via_points"][1]["p"].reverse())}
+    out = tmp_path / "replay.html"
+    proc = _start_cli(*args(folders, tmp_path / "replay.html"), "--export", out)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], lines
+    assert not out.exists()
+
+
+def test_cli_exports_the_runs_of_a_compare_folder_in_one_small_file(compare_dir, tmp_path):
+    out = tmp_path / "three.html"
+    proc = _start_cli(compare_dir, "--export", out)
+    stdout, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert "3 runs of the 20 s reclaim" in stdout
+    html = out.read_text()
+    assert html.count('class="bwr-chart"') == 9 and 'id="bwr-readout-data"' in html
+    assert "http://" not in html.split("__VISER_EMBED_DATA__")[1][:200]
+    assert [p.name for p in tmp_path.iterdir()] == ["three.html"]
+
+
+FOUR_RUNS_LIMIT = 10_000_000  # bytes: four runs of the paper's reclaim in one offline file
+
+
+@pytest.mark.slow
+def test_export_of_four_controllers_on_the_paper_reclaim_fits_in_10_mb(tmp_path):
+    compare = [sys.executable, "-m", "bwr_twin.compare", "paper_individual_gains", "--controllers",
+               "paper_individual_gains", "paper_shared_gain", "pid_paper", "computed_torque_paper",
+               "--out", tmp_path / "compare"]
+    subprocess.run(compare, cwd=ROOT, capture_output=True, text=True, timeout=900, check=True)
+    out = tmp_path / "four.html"
+    command = [sys.executable, "-m", "bwr_twin.replay", tmp_path / "compare", "--export", out]
+    proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "4 runs of the 700 s reclaim" in proc.stdout and out.stat().st_size <= FOUR_RUNS_LIMIT
+
+
+def test_a_bench_plans_times_before_its_run_are_labelled_as_the_plans(tmp_path):
+    """While a bench reclaim is simulated, the page shows its plan's times (as its speed law alone
+    would run it): labelled so, and the note says the plan's duration is an upper bound."""
+    from test_reclaim_plan import small_scene
+
+    plan = Plan.from_scene(small_scene(tmp_path))
+    with ReplayServer(plan, port=0) as server:
+        labels = [node.text for node in server.view.sites[0]._path_nodes if hasattr(node, "text")]
+        assert labels and all(line.endswith(" s (plan)") for label in labels for line in label.split("\n"))
+        assert f"its plan takes at most {plan.duration:g} s" in server._waiting[0].content
+
+
+def test_the_camera_fits_every_point_in_the_picture_beside_the_panel():
+    """A wide pile far from the camera and a machine near it: all in the part of the picture the
+    panel leaves, through the camera's perspective, and one edge touched (as close as it can be)."""
+    from bwr_twin.replay.scenery import ASPECT, CAMERA_FOV, FRAME_MARGIN, frame_view
+
+    rng = np.random.default_rng(3)
+    points = np.concatenate([rng.uniform((-150, 20, 0), (150, 60, 15), (400, 3)),  # a long pile
+                             rng.uniform((-20, -15, 0), (20, 5, 40), (400, 3))])  # a machine by the rail
+    panel = 0.3
+    view = frame_view(points, pile_side=1.0, panel_share=panel)
+    forward = (view.look_at - view.position) / np.linalg.norm(view.look_at - view.position)
+    right = np.cross(forward, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    relative = points - view.position
+    depth = relative @ forward
+    x = relative @ right / depth / (np.tan(CAMERA_FOV / 2) * ASPECT)  # -1 to 1 across the window
+    y = relative @ up / depth / np.tan(CAMERA_FOV / 2)
+    limit = 1.0 - FRAME_MARGIN
+    assert x.min() >= -limit - 1e-6 and x.max() <= limit * (1 - 2 * panel) + 1e-6
+    assert np.abs(y).max() <= limit + 1e-6
+    assert max(-x.min() - limit, x.max() - limit * (1 - 2 * panel), np.abs(y).max() - limit) > -1e-3

@@ -1,13 +1,19 @@
-"""Seconds from `python -m bwr_twin.replay` to a browser page that shows the machine.
+"""Seconds from `python -m bwr_twin.replay` to a browser page that shows the machine, or every
+machine of several runs.
 
     python tools/bench_replay.py [SCENE | RUN_DIR] [--cached] [--runs N]
+    python tools/bench_replay.py COMPARE_DIR --against-one [--runs N]
 
 Starts headless Chromium first (a user's browser is already open), then launches the real
 command with --port 0 (and --no-cache unless --cached, so the simulation is part of it), reads
 the URL it prints, loads the page and polls until the renderer has drawn at least as many
-triangles as the machine's visual geoms have, that is, until the machine is on the canvas.
-Prints that time, and when the simulation is done and the timeline ready. Needs Debian's
-chromium and the `playwright` Python package (no `playwright install`).
+triangles as the machines' visual geoms have, that is, until every machine is on the canvas.
+Prints that time, and when the simulation is done and the timeline ready.
+
+With a folder of several run directories (a `bwr_twin.compare` output) and --against-one, it
+times the replay of all of them against the replay of the first alone, launch for launch in
+turn, and prints the ratio of the medians. Needs Debian's chromium and the `playwright` Python
+package (no `playwright install`).
 """
 
 from __future__ import annotations
@@ -24,27 +30,32 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the headless-browser driver the browser tests use
 
-from headless import RENDERED_TRIANGLES, chromium_context, find_chromium  # noqa: E402
+from headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
-from bwr_twin.shipped import DEFAULT_SCENE  # noqa: E402
+from bwr_twin.shipped import DEFAULT_SCENE
 
 TIMEOUT = 60.0  # s, per stage
 
 
 def machine_triangles(source: Path) -> int:
-    """Triangles of the machine's visual geoms, from the scene's (or run's) MJCF."""
+    """Triangles of the machines' visual geoms, from the scene's (or runs') MJCF: all of the first
+    run's, and the moving ones of each other run of its world."""
     import json
 
     from bwr_twin.config.scene import load_scene
     from bwr_twin.model.machine import Machine
-    from bwr_twin.replay.geometry import visual_geoms
+    from bwr_twin.replay.geometry import BodyPoser, visual_geoms
+    from bwr_twin.replay.runs import run_folders
 
-    mjcf = (
-        json.loads((source / "scene.json").read_text())["machine"]["mjcf"]
-        if source.is_dir()
-        else load_scene(source).machine.mjcf
-    )
-    return sum(len(g.faces) for g in visual_geoms(Machine(mjcf)))
+    if not source.is_dir():
+        return sum(len(g.faces) for g in visual_geoms(Machine(load_scene(source).machine.mjcf)))
+    total = 0
+    for k, folder in enumerate(run_folders(source)):
+        machine = Machine(json.loads((folder / "scene.json").read_text())["machine"]["mjcf"])
+        poser = BodyPoser(machine)
+        moving = {name for name, moves in zip(poser.names, poser.moving) if moves}
+        total += sum(len(g.faces) for g in visual_geoms(machine) if k == 0 or g.body in moving)
+    return total
 
 
 def measure(page, source: Path, cached: bool, triangles: int) -> tuple[float, float | None]:
@@ -93,11 +104,15 @@ def main() -> int:
     )
     parser.add_argument("--cached", action="store_true", help="let the replay use (and fill) its run cache")
     parser.add_argument("--runs", type=int, default=3, help="launches to time (default: 3)")
+    parser.add_argument("--against-one", action="store_true",
+                        help="time the folder's runs together against its first run alone")
     args = parser.parse_args()
     chromium = find_chromium()
     if chromium is None:
         print("error: no chromium on PATH (apt-get install chromium)", file=sys.stderr)
         return 2
+    if args.against_one:
+        return _against_one(chromium, args.source, args.runs)
 
     triangles = machine_triangles(args.source)
     shown, ready = [], []
@@ -120,6 +135,31 @@ def main() -> int:
     )
     if ready:
         print(f"command to a ready timeline: median {statistics.median(ready):.2f} s")
+    return 0
+
+
+def _against_one(chromium: str, folder: Path, launches: int) -> int:
+    """Several runs against the first alone, launch for launch in turn; prints both and their ratio."""
+    from bwr_twin.replay.runs import run_folders
+
+    folder = folder.resolve()  # the command runs in the checkout
+    runs = run_folders(folder)
+    if len(runs) < 2:
+        print(f"error: {folder}: --against-one needs a folder of several run directories", file=sys.stderr)
+        return 2
+    cases = {"one run": (runs[0], machine_triangles(runs[0])), f"{len(runs)} runs": (folder, machine_triangles(folder))}
+    shown: dict[str, list[float]] = {name: [] for name in cases}
+    with chromium_context(chromium) as browser:
+        for launch in range(launches):
+            for name, (source, triangles) in cases.items():
+                page = browser.new_page()
+                seconds, _ = measure(page, source, True, triangles)
+                page.close()
+                shown[name].append(seconds)
+                print(f"launch {launch + 1}, {name}: every machine on screen after {seconds:.2f} s")
+    one, several = (statistics.median(times) for times in shown.values())
+    print(f"command to a page showing every machine: one run median {one:.2f} s, {len(runs)} runs median "
+          f"{several:.2f} s over {launches} launches each: {several / one:.2f}x")
     return 0
 
 

@@ -1,11 +1,12 @@
 """Every edit made to a machine's MJCF before it is compiled, in one place.
 
 The XML is the machine as its file describes it. Before compiling, a scene may add the payloads
-its plant carries (point masses the file does not show) and set the physics timestep; the
-simulation also strips the visual geoms: they carry no mass and no contacts (the model contract,
-docs/contracts.md), so a copy without them steps to the same state, faster. Values that may
-differ between the runs of one lockstep (friction loss, wind, air density) are not edits: they
-are per-simulation fields of the plant's batch (`bwr_twin.sim.plant`).
+its plant carries (point masses the file does not show) and set the physics timestep; a video
+sizes the offscreen framebuffer to its pictures, adds a sky and colours the pile's cut faces
+(`bwr_twin.replay.video_scene`); the simulation also strips the visual geoms: they carry no mass
+and no contacts (the model contract, docs/contracts.md), so a copy without them steps to the same
+state, faster. Values that may differ between the runs of one lockstep (friction loss, wind, air
+density) are not edits: they are per-simulation fields of the plant's batch (`bwr_twin.sim.plant`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,9 @@ from bwr_twin.errors import ModelError
 _POINT_INERTIA = 1e-6  # kg m^2: a point mass, as MuJoCo needs a positive inertia
 
 
-STOCKPILE = "stockpile"  # name of the pile's hfield asset and geom
+STOCKPILE = "stockpile"  # name of the pile's hfield asset and geom, and of its texture and material
+SKY = "sky"  # name of the sky's texture, added for pictures of a model whose file has none
+_SKY_TEXELS = 256  # a gradient's resolution: smooth on any picture
 
 
 class Heights(Protocol):
@@ -49,6 +52,15 @@ class Payload(Protocol):
     pos: tuple[float, float, float]
 
 
+class Picture(Protocol):
+    """How offscreen pictures of the model are drawn."""
+
+    width: int  # px
+    height: int  # px
+    samples: int  # multisamples per pixel, 0 for none
+    sky: tuple[tuple[float, float, float], tuple[float, float, float]]  # rgb at the zenith and the horizon
+
+
 @dataclass(frozen=True)
 class Edits:
     """What to change in the file before compiling.
@@ -60,20 +72,27 @@ class Edits:
             rays (`mj_ray`) measure it as a laser scanner would.
         stockpile_drawing: how that pile is drawn; None: MuJoCo's default colour, and a base
             one grid spacing deep (a pile only for rays to measure).
+        stockpile_texture: give the pile a texture of one texel per height sample, in the
+            drawing's colour, for a renderer to colour it by (`set_stockpile_colours`): the
+            faces the wheel cut in another colour than the untouched pile.
         timestep: the physics timestep in s; None keeps the file's.
         physics_only: delete every geom that has no contacts and meets no fluid (the visual
             ones), keeping the wind areas of MuJoCo's ellipsoid fluid model.
         rigid_body_only: switch off what M and the bias forces do not need (constraints,
             contacts, joint limits, friction loss, springs, dampers, actuation, sensors): the
             controller's belief asks for nothing else.
+        picture: how MuJoCo draws the model offscreen (a video's pictures): the framebuffer's
+            size and multisampling, and a sky where the file has none; None keeps the file's.
     """
 
     payloads: Sequence[Payload] = ()
     stockpile: Heights | None = None
     stockpile_drawing: Drawing | None = None
+    stockpile_texture: bool = False
     timestep: float | None = None
     physics_only: bool = False
     rigid_body_only: bool = False
+    picture: Picture | None = None
 
 
 _RIGID_BODY_ONLY = (
@@ -107,9 +126,11 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
                 explicitinertial=True,
             )
         if edits.stockpile is not None:
-            _add_stockpile(spec, edits.stockpile, edits.stockpile_drawing)
+            _add_stockpile(spec, edits.stockpile, edits.stockpile_drawing, textured=edits.stockpile_texture)
         if edits.timestep is not None:
             spec.option.timestep = edits.timestep
+        if edits.picture is not None:
+            _set_picture(spec, edits.picture)
         if edits.rigid_body_only:
             spec.option.disableflags |= int(_RIGID_BODY_ONLY)
         if edits.physics_only:
@@ -122,7 +143,7 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
 
 
-def _add_stockpile(spec: mujoco.MjSpec, pile: Heights, drawing: Drawing | None) -> None:
+def _add_stockpile(spec: mujoco.MjSpec, pile: Heights, drawing: Drawing | None, *, textured: bool) -> None:
     """The pile as an hfield geom on the world body: row 0 of its data lies at the lowest Y."""
     top = max(float(pile.z.max()), 1e-3)
     base = drawing.base_depth if drawing is not None else float(pile.x[1] - pile.x[0])  # MuJoCo needs one
@@ -144,6 +165,28 @@ def _add_stockpile(spec: mujoco.MjSpec, pile: Heights, drawing: Drawing | None) 
     )
     if drawing is not None:
         geom.rgba = list(drawing.colour)
+    if textured:  # MuJoCo stretches a 2D texture once over an hfield, its first row at the highest Y
+        colour = np.asarray(geom.rgba)
+        texels = np.broadcast_to(np.round(255 * colour[:3]).astype(np.uint8), (len(pile.y), len(pile.x), 3))
+        texture = spec.add_texture(name=STOCKPILE, type=mujoco.mjtTexture.mjTEXTURE_2D, width=len(pile.x),
+                                   height=len(pile.y), nchannel=3,
+                                   colorspace=mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)  # the rgba, as is
+        texture.data = texels.tobytes()
+        roles = [""] * mujoco.mjtTextureRole.mjNTEXROLE
+        roles[mujoco.mjtTextureRole.mjTEXROLE_RGB] = STOCKPILE
+        spec.add_material(name=STOCKPILE, textures=roles)
+        geom.material = STOCKPILE
+        geom.rgba = [1.0, 1.0, 1.0, float(colour[3])]  # the texture holds the colour; MuJoCo multiplies
+
+
+def _set_picture(spec: mujoco.MjSpec, picture: Picture) -> None:
+    """An offscreen framebuffer of the picture's size and multisampling, and a gradient sky."""
+    spec.visual.global_.offwidth, spec.visual.global_.offheight = picture.width, picture.height
+    spec.visual.quality.offsamples = picture.samples
+    if not any(texture.type == mujoco.mjtTexture.mjTEXTURE_SKYBOX for texture in spec.textures):
+        spec.add_texture(name=SKY, type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                         builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=list(picture.sky[0]),
+                         rgb2=list(picture.sky[1]), width=_SKY_TEXELS, height=6 * _SKY_TEXELS)
 
 
 def set_stockpile_heights(model: mujoco.MjModel, z: np.ndarray) -> None:
@@ -154,3 +197,11 @@ def set_stockpile_heights(model: mujoco.MjModel, z: np.ndarray) -> None:
     nrow, ncol = model.hfield_nrow[hfield], model.hfield_ncol[hfield]
     adr, top = model.hfield_adr[hfield], model.hfield_size[hfield, 2]
     model.hfield_data[adr : adr + nrow * ncol] = (np.asarray(z) / top).ravel()
+
+
+def set_stockpile_colours(model: mujoco.MjModel, rgb: np.ndarray) -> None:
+    """Write colours (uint8, one per height sample, shaped as the heights with a last axis of 3)
+    into the pile's texture (`Edits.stockpile_texture`); a renderer then uploads it."""
+    texture = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXTURE, STOCKPILE)
+    adr, size = model.tex_adr[texture], model.tex_height[texture] * model.tex_width[texture] * 3
+    model.tex_data[adr : adr + size] = np.asarray(rgb, dtype=np.uint8)[::-1].ravel()

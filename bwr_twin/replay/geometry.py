@@ -235,6 +235,11 @@ class BodyPoser:
         return np.concatenate(out)
 
 
+def body_vertices(geom: VisualGeom) -> np.ndarray:
+    """(v, 3) the geom's vertices in the frame of the weld body that carries it, m."""
+    return geom.vertices @ _matrix(geom.wxyz).T + geom.position
+
+
 def _matrix(wxyz: np.ndarray) -> np.ndarray:
     matrix = np.empty(9)
     mujoco.mju_quat2Mat(matrix, np.asarray(wxyz, dtype=float))

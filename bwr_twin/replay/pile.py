@@ -9,11 +9,14 @@ that were dug are drawn in the colour of fresh ore, the untouched pile in weathe
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import viser
 
 from bwr_twin.stockpile.history import PileHistory
+
+if TYPE_CHECKING:  # the video renders the pile without viser
+    import viser
 
 MAX_DISPLAY_VERTICES = 20_000
 TILE = 8  # display cells along a tile's side
@@ -26,16 +29,15 @@ class PileView:
     """The pile on a viser scene at its start; once a run's history is attached, `show` poses it
     for a time of that history."""
 
-    def __init__(self, scene: viser.SceneApi, x: np.ndarray, y: np.ndarray, z_start: np.ndarray):
-        self.history: PileHistory | None = None
+    def __init__(self, scene: viser.SceneApi, x: np.ndarray, y: np.ndarray, z_start: np.ndarray,
+                 name: str = "/pile"):
+        self.dug: DugHeights | None = None
         self.x, self.y, self.z_start = x, y, z_start
         ny, nx = z_start.shape
-        step = max(1, math.ceil(math.sqrt(nx * ny / MAX_DISPLAY_VERTICES)))
+        step = display_step(z_start.shape)
         self._rows = _samples(ny, step)
         self._cols = _samples(nx, step)
-        self._z = z_start.copy()
-        self._applied = 0  # frames applied to _z
-        self._shown = self._display(self._z)
+        self._shown = self._display(z_start)
         self._start = self._shown.copy()
         gx, gy = np.meshgrid(x[self._cols], y[self._rows])
         self._xy = np.stack([gx, gy], axis=-1).astype(np.float32)
@@ -44,27 +46,16 @@ class PileView:
             for c0 in range(0, len(self._cols) - 1, TILE):
                 rows = slice(r0, min(r0 + TILE, len(self._rows) - 1) + 1)
                 cols = slice(c0, min(c0 + TILE, len(self._cols) - 1) + 1)
-                self._tiles.append(_Tile(scene, f"/pile/{r0}_{c0}", rows, cols, self._xy, self._shown, self._start))
+                self._tiles.append(_Tile(scene, f"{name}/{r0}_{c0}", rows, cols, self._xy, self._shown, self._start))
 
     def attach(self, history: PileHistory) -> None:
-        self.history = history
+        self.dug = DugHeights(history)
 
     def show(self, t: float) -> None:
         """The pile as it was at time t (s): tiles whose samples changed are sent again."""
-        h = self.history
-        if h is None:
+        if self.dug is None or not self.dug.advance(t):
             return
-        frames = int(np.searchsorted(h.frame_time, t, side="right"))
-        if frames == self._applied:
-            return
-        if frames < self._applied:  # back in time: from the start again
-            self._z[:] = h.z_start
-            self._applied = 0
-        flat = self._z.reshape(-1)
-        start, end = h.offsets[self._applied], h.offsets[frames]
-        flat[h.cells[start:end]] = h.heights[start:end]  # later frames overwrite earlier ones
-        self._applied = frames
-        shown = self._display(self._z)
+        shown = self._display(self.dug.z)
         changed = shown != self._shown
         self._shown = shown
         for tile in self._tiles:
@@ -79,6 +70,37 @@ class PileView:
         """(8, 3) corners of the pile's bounding box, for framing the camera (m)."""
         top = float(self.z_start.max())
         return np.array([(x, y, z) for x in self.x[[0, -1]] for y in self.y[[0, -1]] for z in (0.0, top)])
+
+
+class DugHeights:
+    """A run's pile heights `z` (m) at a time of its history: the frames up to that time applied
+    to its start, onwards from the time asked before (back in time: from the start again)."""
+
+    def __init__(self, history: PileHistory):
+        self.history = history
+        self.z = history.z_start.copy()
+        self._applied = 0  # frames applied to z
+
+    def advance(self, t: float) -> bool:
+        """Bring `z` to time t (s); whether it changed."""
+        h = self.history
+        frames = int(np.searchsorted(h.frame_time, t, side="right"))
+        if frames == self._applied:
+            return False
+        if frames < self._applied:
+            self.z[:] = h.z_start
+            self._applied = 0
+        flat = self.z.reshape(-1)
+        start, end = h.offsets[self._applied], h.offsets[frames]
+        flat[h.cells[start:end]] = h.heights[start:end]  # later frames overwrite earlier ones
+        self._applied = frames
+        return True
+
+
+def display_step(shape: tuple[int, int]) -> int:
+    """Every how many grid samples the pile is drawn: at most MAX_DISPLAY_VERTICES in all."""
+    ny, nx = shape
+    return max(1, math.ceil(math.sqrt(nx * ny / MAX_DISPLAY_VERTICES)))
 
 
 def _samples(count: int, step: int) -> np.ndarray:

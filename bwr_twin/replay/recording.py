@@ -154,6 +154,7 @@ class Recording:
     cp_actual: np.ndarray  # (n, 3) m
     reclaim_rate: np.ndarray | None = None  # (n,) t/h, with a stockpile
     pile: PileHistory | None = None  # the pile as it was dug, with a stockpile
+    controller: str = ""  # the controller's type, as its scene names it: "fuzzy_model", "pid", ...
 
     @property
     def q_error(self) -> np.ndarray:
@@ -269,7 +270,8 @@ class Recording:
             via_stages=stages,
         )
         return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
-                   reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile)
+                   reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile,
+                   controller=str((scene.get("controller") or {}).get("type", "")))
 
 
 def read_recorded(path: Path) -> dict[str, np.ndarray]:

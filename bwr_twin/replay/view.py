@@ -1,46 +1,49 @@
-"""The 3D scene of a replay on a viser server, and how one instant of a recording poses it.
+"""The 3D scene of a replay on a viser server, and how one instant of its runs poses it.
 
-Meshes, the paths and the via points are sent once. An instant then costs one pose per moving
-rigid body, the target's position, the tip of the CP trail and the pile's tiles dug since the
-last instant (bwr_twin.replay.pile); the caller wraps it
-in `server.atomic()` so that a frame arrives whole. The live replay and the HTML export share
-this code, so they show the same picture.
+Each place where a path is reclaimed is a `Site`: the MJCF's fixed geoms (the rail), the pile,
+the desired path, the via points and the target. Each run is a `MachineView`: its machine's
+moving bodies and its CP trail (bwr_twin.replay.machine_view). Runs of one path share one site;
+side by side, each run has its own, in a row across the rail, spaced by what each draws.
+
+Meshes, paths and via points are sent once. An instant then costs, per shown run, one pose per
+moving rigid body and the tip of its trail, and per site the target's position and the pile's
+tiles dug since the last instant (bwr_twin.replay.pile); the caller wraps it in
+`server.atomic()` so that a frame arrives whole. The live replay and the HTML export share this
+code, so they show the same picture.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import viser
 
 from bwr_twin.replay.geometry import BodyPoser, visual_geoms
+from bwr_twin.replay.machine_view import MachineView, Paint, segments
 from bwr_twin.replay.pile import PileView
 from bwr_twin.replay.recording import Plan, Recording, decimate
-from bwr_twin.replay.scenery import CAMERA_FOV, frame_view, stockpile
+from bwr_twin.replay.scenery import ASPECT, CAMERA_FOV, frame_view, stockpile
+from bwr_twin.replay.style import (  # noqa: F401  (the video draws with the same colours)
+    ACTUAL_COLOUR,
+    DESIRED_COLOUR,
+    GHOST_COLOUR,
+    GHOST_OPACITY,
+    GROUND_COLOUR,
+    LABEL_MERGE,
+    LINE_WIDTH,
+    MARKER_SCALE,
+    ORE_COLOUR,
+    PATH_STEP,
+    TARGET_COLOUR,
+    VIA_COLOUR,
+    rgb,
+    run_colour,
+)
 
-DESIRED_COLOUR = (60, 120, 230)
-ACTUAL_COLOUR = (235, 95, 20)
-TARGET_COLOUR = (220, 30, 30)
-VIA_COLOUR = (30, 30, 30)
-ORE_COLOUR = (112, 66, 44)
-GROUND_COLOUR = (205, 196, 178)
-PATH_STEP = 1.0  # s between drawn points of the desired path and of the trail
-TRAIL_CHUNK = 20  # trail segments per scene node; only the unfinished chunk is re-sent
-LINE_WIDTH = 2.5  # px, desired path; the trail is twice as wide
-MARKER_SCALE = 0.01  # marker radius as a share of the path's extent
-LABEL_MERGE = 4.0  # via points closer than this many marker radii share one label
-GHOST_COLOUR = (90, 110, 255)
-GHOST_OPACITY = 0.35  # the second run's machine: seen through, the first stays in front
-
-
-def rgb(rgba: tuple[float, ...]) -> tuple[int, int, int]:
-    return tuple(round(255 * c) for c in rgba[:3])
-
-
-def _segments(points: np.ndarray) -> np.ndarray:
-    """A polyline (m, 3) as (m - 1, 2, 3) line segments; one degenerate segment for a single point."""
-    if len(points) == 1:
-        points = np.repeat(points, 2, axis=0)
-    return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
+FRAMING_POSES = 5  # poses of each run, evenly in time, that the camera and the row of runs allow for
+LANE_GAP = 0.1  # of the widest run's extent across the rail: the space between runs side by side
+FAINTEST = 0.2  # opacity of a translucent machine among many
 
 
 def label_groups(points: np.ndarray, distance: float) -> dict[int, list[int]]:
@@ -54,68 +57,153 @@ def label_groups(points: np.ndarray, distance: float) -> dict[int, list[int]]:
     return groups
 
 
-class SceneView:
-    """The scene of `plan` on `server`: the machine at its start pose, ground, pile, desired
-    path, via points and target. `attach` adds a recording's trail; `show` poses an instant."""
+class Site:
+    """Where a path is reclaimed, under the scene frame /sites/<k>: the MJCF's fixed geoms, the
+    pile (the scene's, dug as the site's first run dug it; or scenery under the path, dug by
+    nothing), the desired path, the via points and the target."""
 
-    def __init__(self, server: viser.ViserServer, plan: Plan, *, panel_share: float = 0.0):
-        self.server = server
-        self.plan = plan
-        self.poser = BodyPoser(plan.machine)
-        self.geoms = visual_geoms(plan.machine)
-        self.recording: Recording | None = None
-        self.ghost: Ghost | None = None
-        self.pile: PileView | None = None
-        scene = server.scene
-        self.bodies = [scene.add_frame(f"/machine/{name}", show_axes=False) for name in self.poser.names]
-        self.geom_nodes = [
-            scene.add_mesh_simple(
-                f"/machine/{geom.body}/{geom.name.replace('/', '_')}",
-                geom.vertices,
-                geom.faces,
-                color=rgb(geom.rgba),
-                opacity=geom.rgba[3] if geom.rgba[3] < 1.0 else None,
-                flat_shading=geom.type in ("box", "plane", "mesh"),
-                position=geom.position,
-                wxyz=geom.wxyz,
-            )
+    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, name: str | None = None):
+        self.scene, self.prefix = scene, f"/sites/{k}"
+        self.frame = scene.add_frame(self.prefix, show_axes=False)
+        machine = plan.machine
+        poser = BodyPoser(machine)
+        fixed = {name for name, moves in zip(poser.names, poser.moving) if not moves}
+        self.geoms = [geom for geom in visual_geoms(machine) if geom.body in fixed]  # the world body's
+        self.nodes = [
+            scene.add_mesh_simple(f"{self.prefix}/fixed/{geom.name.replace('/', '_')}", geom.vertices, geom.faces,
+                                  color=rgb(geom.rgba), opacity=geom.rgba[3] if geom.rgba[3] < 1.0 else None,
+                                  flat_shading=geom.type in ("box", "plane", "mesh"), position=geom.position,
+                                  wxyz=geom.wxyz)
             for geom in self.geoms
         ]
-        self._place(plan.q_desired[0], every_body=True)
-        self._add_surroundings(panel_share)
-        self._add_paths()
-
-    def _add_surroundings(self, panel_share: float) -> None:
-        """Pile, ground and an initial camera that frames machine, pile and path (in the part
-        of the window that a GUI panel covering `panel_share` of its width on the right leaves)."""
-        plan, scene = self.plan, self.server.scene
-        rail_y = plan.machine.geometry.slew_axis_xy[1]
-        moving = {name for name, moves in zip(self.poser.names, self.poser.moving) if moves}
-        machine = [geom for geom in self.geoms if geom.body in moving]  # not the rail: it may run far on
-        extent = [plan.cp_desired] + [
-            self.poser.world_vertices(machine, q) for q in (plan.q_desired[0], plan.q_desired[len(plan.time) // 2])
-        ]
-        side = 1.0
+        rail_y = machine.geometry.slew_axis_xy[1]
+        self.pile: PileView | None = None
+        self.pile_side, self.points = 1.0, [plan.cp_desired]  # what the camera must see, before any offset
         if plan.pile is not None:  # the scene's stockpile, dug as the run goes
-            self.pile = PileView(scene, plan.pile.x, plan.pile.y, plan.pile.z)
-            extent.append(self.pile.corners)
-            side = float(np.sign(np.mean(plan.pile.y) - rail_y)) or 1.0
-        else:  # scenery: a pile painted under the path, which nothing digs
+            self.pile = PileView(scene, plan.pile.x, plan.pile.y, plan.pile.z, name=f"{self.prefix}/pile")
+            self.points.append(self.pile.corners)
+            self.pile_side = float(np.sign(np.mean(plan.pile.y) - rail_y)) or 1.0
+        else:
             painted = stockpile(plan.via_points, rail_y=rail_y)
             if painted is not None:
-                scene.add_mesh_simple("/pile", painted.vertices, painted.faces, color=ORE_COLOUR, flat_shading=True)
-                extent.append(painted.vertices)
-                side = painted.side
-        view = frame_view(np.concatenate(extent), pile_side=side, panel_share=panel_share)
+                scene.add_mesh_simple(f"{self.prefix}/pile", painted.vertices, painted.faces, color=ORE_COLOUR,
+                                      flat_shading=True)
+                self.points.append(painted.vertices)
+                self.pile_side = painted.side
+        self._path_nodes: list = []
+        self.marker_radius = MARKER_SCALE * float(np.linalg.norm(np.ptp(plan.cp_desired, axis=0)) or 1.0)
+        self.target = scene.add_icosphere(f"{self.prefix}/target", radius=1.5 * self.marker_radius,
+                                          color=TARGET_COLOUR, position=plan.cp_desired[0])
+        self.draw_path(plan, planned=bool(plan.via_stages))
+        if name is not None:  # side by side: say whose run this is, above its path
+            top = plan.cp_desired[np.argmax(plan.cp_desired[:, 2])]
+            scene.add_label(f"{self.prefix}/name", name, position=top + (0.0, 0.0, 8.0 * self.marker_radius),
+                            anchor="bottom-center", font_screen_scale=1.2)
+
+    def draw_path(self, plan: Plan, *, planned: bool = False) -> None:
+        """The whole desired CP path and the via points with labels (again, for a run's own times).
+        A bench plan's times before its run are the plan's, as its speed law alone would run it:
+        `planned` labels them so, apart from the run's own, which replace them."""
+        for node in reversed(self._path_nodes):  # labels before the via points that carry them
+            node.remove()
+        scene = self.scene
+        path = plan.cp_desired[decimate(plan.time, PATH_STEP)]
+        nodes = [scene.add_line_segments(f"{self.prefix}/path", segments(path), DESIRED_COLOUR,
+                                         thickness=LINE_WIDTH, thickness_units="screen")]
+        names = plan.names
+        nodes += [scene.add_icosphere(f"{self.prefix}/via/P{i + 1}", radius=self.marker_radius, color=VIA_COLOUR,
+                                      position=p) for i, p in enumerate(plan.via_points)]
+        # A path's via points are all named; a bench plan names its benches and its end in the scene
+        # (its passes, a metre apart, on the slider and in the readout).
+        landmarks = {name for name, _ in plan.landmarks}
+        named = [i for i, name in enumerate(names) if name in landmarks or name == "end"]
+        for first, members in label_groups(plan.via_points[named], LABEL_MERGE * self.marker_radius).items():
+            nodes.append(scene.add_label(
+                f"{self.prefix}/via/P{named[first] + 1}/label",
+                "\n".join(f"{names[named[k]]}  t = {plan.via_times[named[k]]:g} s" + (" (plan)" if planned else "")
+                          for k in members),
+                position=(0.0, 0.0, 2.0 * self.marker_radius),
+                anchor="bottom-center",
+            ))
+        self._path_nodes = nodes
+
+    def attach(self, recording: Recording) -> None:
+        """The site's first run: its pile as it dug it, its path and via points at its own times."""
+        if self.pile is not None and recording.pile is not None:
+            self.pile.attach(recording.pile)
+        self.draw_path(recording.plan)
+
+    def show(self, t: float, cp_desired: np.ndarray) -> None:
+        self.target.position = cp_desired
+        if self.pile is not None:
+            self.pile.show(t)
+
+
+class SceneView:
+    """The scene of one or several runs, given by their plans (a run being simulated has no
+    recording yet): sites, machines, ground and an initial camera that frames them all.
+    `attach` gives run k its recording; `show` poses the shown runs at a time; `paint` and
+    `set_visible` change how they look.
+
+    Args:
+        server: the viser server whose scene this draws.
+        plans: one per run; runs of one site must share machine and path (`runs.check_one_world`).
+        names: each run's name, written over its site when the runs stand side by side.
+        side_by_side: give each run its own site, in a row across the rail.
+        panel_share: the part of the window a GUI panel covers on the right; the camera leaves it.
+        aspect: the picture's width over its height.
+    """
+
+    def __init__(self, server: viser.ViserServer, plans: Plan | Sequence[Plan], *, names: Sequence[str] = (),
+                 side_by_side: bool = False, panel_share: float = 0.0, aspect: float = ASPECT):
+        self.server = server
+        plans = [plans] if isinstance(plans, Plan) else list(plans)
+        self.plan = plans[0]
+        scene = server.scene
+        if side_by_side:
+            self.sites = [Site(scene, plan, k, names[k] if k < len(names) else None) for k, plan in enumerate(plans)]
+            self.site_of = list(range(len(plans)))
+        else:
+            self.sites, self.site_of = [Site(scene, plans[0], 0)], [0] * len(plans)
+        paints = _paints(len(plans), len(self.sites), solid=0)
+        self.machines = [MachineView(scene, plan, k, run_colour(k), paint) for k, (plan, paint) in
+                         enumerate(zip(plans, paints))]
+        self.recordings: list[Recording | None] = [None] * len(plans)
+        # What each site's first run draws over its run (runs of one site follow its path, a few
+        # centimetres apart): the row's spacing and the camera's framing.
+        firsts = [self.site_of.index(s) for s in range(len(self.sites))]
+        extents = [np.concatenate([*site.points, *(self.machines[k].vertices(q) for q in _framing_poses(plans[k]))])
+                   for site, k in zip(self.sites, firsts)]
+        offsets = _row(extents, self.sites[0].pile_side) if side_by_side else np.zeros((1, 3))
+        for site, offset in zip(self.sites, offsets):
+            site.frame.position = offset
+        for machine, s in zip(self.machines, self.site_of):
+            machine.root.position = offsets[s]
+        self._frame_camera(np.concatenate([e + o for e, o in zip(extents, offsets)]), panel_share, aspect)
+
+    @property
+    def poser(self) -> BodyPoser:
+        return self.machines[0].poser
+
+    @property
+    def geoms(self) -> list:
+        """The first run's visual geoms in model order: its machine's and its site's fixed ones."""
+        return [geom for geom, _ in self.drawn_geoms()]
+
+    def drawn_geoms(self, k: int = 0) -> list[tuple]:
+        """(VisualGeom, scene node) of run k's machine and its site's fixed geoms, in model order."""
+        site, machine = self.sites[self.site_of[k]], self.machines[k]
+        pairs = {geom.name: (geom, node) for geom, node in [*zip(site.geoms, site.nodes),
+                                                             *zip(machine.geoms, machine.nodes)]}
+        return [pairs[geom.name] for geom in visual_geoms(self.plan.machine)]
+
+    def _frame_camera(self, points: np.ndarray, panel_share: float, aspect: float) -> None:
+        """An initial camera that frames every machine, pile and path; a ground well past them."""
+        view = frame_view(points, pile_side=self.sites[0].pile_side, panel_share=panel_share, aspect=aspect)
         self.caption_position = view.caption
         camera = self.server.initial_camera
-        camera.position, camera.look_at, camera.up, camera.fov = (
-            view.position,
-            view.look_at,
-            (0.0, 0.0, 1.0),
-            CAMERA_FOV,
-        )
-        scene.add_grid(
+        camera.position, camera.look_at, camera.up, camera.fov = view.position, view.look_at, (0.0, 0.0, 1.0), CAMERA_FOV
+        self.server.scene.add_grid(
             "/ground",
             width=view.ground_size,
             height=view.ground_size,
@@ -127,115 +215,56 @@ class SceneView:
             fade_distance=2.0 * view.ground_size,  # the default fades out a ground this large
         )
 
-    def _add_paths(self) -> None:
-        """The whole desired CP path, the via points with labels and the current target."""
-        plan, scene = self.plan, self.server.scene
-        self.marker_radius = MARKER_SCALE * float(np.linalg.norm(np.ptp(plan.cp_desired, axis=0)) or 1.0)
-        path = plan.cp_desired[decimate(plan.time, PATH_STEP)]
-        scene.add_line_segments(
-            "/path/desired", _segments(path), DESIRED_COLOUR, thickness=LINE_WIDTH, thickness_units="screen"
-        )
-        names = plan.names
-        for i, p in enumerate(plan.via_points):
-            scene.add_icosphere(f"/via/P{i + 1}", radius=self.marker_radius, color=VIA_COLOUR, position=p)
-        # A path's via points are all named; a bench plan names its benches in the scene (its passes,
-        # a metre apart, on the slider and in the readout).
-        landmarks = {name for name, _ in plan.landmarks}
-        named = [i for i, name in enumerate(names) if name in landmarks or name == "end"]
-        for first, members in label_groups(plan.via_points[named], LABEL_MERGE * self.marker_radius).items():
-            scene.add_label(
-                f"/via/P{named[first] + 1}/label",
-                "\n".join(f"{names[named[k]]}  t = {plan.via_times[named[k]]:g} s" for k in members),
-                position=(0.0, 0.0, 2.0 * self.marker_radius),
-                anchor="bottom-center",
-            )
-        self.target = scene.add_icosphere(
-            "/target", radius=1.5 * self.marker_radius, color=TARGET_COLOUR, position=plan.cp_desired[0]
-        )
+    def attach(self, recording: Recording, k: int = 0) -> None:
+        """Run k's recording: its trail, and its site's pile and via points if it is the site's first run."""
+        self.recordings[k] = recording
+        self.machines[k].attach(recording)
+        if self.site_of.index(self.site_of[k]) == k:
+            self.sites[self.site_of[k]].attach(recording)
 
-    def _place(self, q: np.ndarray, *, every_body: bool = False) -> None:
-        """Pose the rigid bodies for joint values q; static ones only when `every_body`."""
-        positions, orientations = self.poser.poses(q)
-        for frame, moving, position, wxyz in zip(self.bodies, self.poser.moving, positions, orientations):
-            if moving or every_body:
-                frame.position = position
-                frame.wxyz = wxyz
+    def paint(self, solid: int | None) -> None:
+        """Run `solid` in its MJCF colours and every other one translucent in its own colour; with
+        None, every machine solid in its own colour. One run alone keeps its MJCF colours."""
+        for machine, (kind, opacity) in zip(self.machines, _paints(len(self.machines), len(self.sites), solid)):
+            machine.paint(kind, opacity)
 
-    def attach(self, recording: Recording) -> None:
-        """Add the actual CP trail in chunks, each sent once and then only shown or hidden."""
-        self.recording = recording
-        if self.pile is not None and recording.pile is not None:
-            self.pile.attach(recording.pile)
-        samples = decimate(recording.plan.time, PATH_STEP)
-        self.trail_time = recording.plan.time[samples]
-        self.trail_points = recording.cp_actual[samples]
-        scene = self.server.scene
-        self.trail_chunks = [
-            scene.add_line_segments(
-                f"/path/actual/{c}",
-                _segments(self.trail_points[start : start + TRAIL_CHUNK + 1]),
-                ACTUAL_COLOUR,
-                thickness=2 * LINE_WIDTH,
-                thickness_units="screen",
-                visible=False,
-            )
-            for c, start in enumerate(range(0, len(samples) - 1, TRAIL_CHUNK))
-        ]
-        self.chunks_shown = 0
-        self.trail_tip = scene.add_line_segments(
-            "/path/actual/tip",
-            _segments(self.trail_points[:1]),
-            ACTUAL_COLOUR,
-            thickness=2 * LINE_WIDTH,
-            thickness_units="screen",
-        )
-
-    def add_ghost(self, recording: Recording, label: str) -> None:
-        """A second run of the same path, drawn as a translucent machine that `show` poses too."""
-        self.ghost = Ghost(self.server, recording, label)
+    def set_visible(self, k: int, shown: bool) -> None:
+        self.machines[k].visible = shown
 
     def show(self, t: float) -> None:
-        """Pose machine, target and trail for time t (s) of the attached recording (and the ghost's)."""
-        assert self.recording is not None, "attach a recording first"
-        if self.ghost is not None:
-            self.ghost.show(t)
-        instant = self.recording.at(t)
-        self._place(instant.q_actual)
-        if self.pile is not None:
-            self.pile.show(t)
-        self.target.position = instant.cp_desired
-        last = max(0, int(np.searchsorted(self.trail_time, t, side="right")) - 1)
-        complete = last // TRAIL_CHUNK  # chunks wholly before t
-        for c in range(min(complete, self.chunks_shown), max(complete, self.chunks_shown)):
-            self.trail_chunks[c].visible = c < complete
-        self.chunks_shown = complete
-        tip = np.concatenate([self.trail_points[complete * TRAIL_CHUNK : last + 1], instant.cp_actual[None]])
-        self.trail_tip.points = _segments(tip)
+        """Pose every shown run's machine and trail, and every site's target and pile, for time t (s)."""
+        assert all(r is not None for r in self.recordings), "attach every run's recording first"
+        shown = {k: machine.show(t) for k, machine in enumerate(self.machines) if machine.visible}
+        for s, site in enumerate(self.sites):
+            first = self.site_of.index(s)
+            instant = shown[first] if first in shown else self.recordings[first].at(t)
+            site.show(t, instant.cp_desired)
 
 
-class Ghost:
-    """Another run's machine, translucent and in one colour, posed from its own recording: two
-    controllers on one path, side by side in one scene."""
+def _paints(runs: int, sites: int, solid: int | None) -> list[tuple[Paint, float]]:
+    """How each machine is drawn (see `SceneView.paint`). The translucent machines of one site lie
+    on top of each other: together they veil the solid one about as much as one ghost does
+    (GHOST_OPACITY), each no fainter than FAINTEST, so that one apart from the others still shows."""
+    over = max(1, runs // sites - 1)
+    opacity = max(1.0 - (1.0 - GHOST_OPACITY) ** (1.0 / over), FAINTEST)
+    return [("model", 1.0) if runs == 1 or k == solid else ("colour" if solid is None else "translucent", opacity)
+            for k in range(runs)]
 
-    def __init__(self, server: viser.ViserServer, recording: Recording, label: str):
-        self.recording = recording
-        self.poser = BodyPoser(recording.plan.machine)
-        moving = {name for name, moves in zip(self.poser.names, self.poser.moving) if moves}
-        scene = server.scene
-        self.bodies = {name: scene.add_frame(f"/ghost/{name}", show_axes=False) for name in moving}
-        for geom in visual_geoms(recording.plan.machine):
-            if geom.body in moving:
-                scene.add_mesh_simple(f"/ghost/{geom.body}/{geom.name.replace('/', '_')}", geom.vertices,
-                                      geom.faces, color=GHOST_COLOUR, opacity=GHOST_OPACITY,
-                                      position=geom.position, wxyz=geom.wxyz)
-        # Below the wheel: the via point labels sit above their points.
-        self.label = scene.add_label("/ghost_label", f"ghost: {label}", position=recording.plan.cp_desired[0],
-                                     anchor="top-center")
 
-    def show(self, t: float) -> None:
-        instant = self.recording.at(t)
-        positions, orientations = self.poser.poses(instant.q_actual)
-        for name, position, wxyz in zip(self.poser.names, positions, orientations):
-            if name in self.bodies:
-                self.bodies[name].position, self.bodies[name].wxyz = position, wxyz
-        self.label.position = instant.cp_actual
+def _framing_poses(plan: Plan) -> np.ndarray:
+    """FRAMING_POSES joint values of the plan, evenly in time."""
+    return plan.q_desired[np.linspace(0, len(plan.time) - 1, FRAMING_POSES).astype(int)]
+
+
+def _row(extents: Sequence[np.ndarray], pile_side: float) -> np.ndarray:
+    """Offsets (n, 3) that set runs side by side across the rail, away from the camera: each
+    next to the one before by their drawn extents across it, with a gap."""
+    lows = [float(e[:, 1].min()) if pile_side > 0 else -float(e[:, 1].max()) for e in extents]
+    highs = [float(e[:, 1].max()) if pile_side > 0 else -float(e[:, 1].min()) for e in extents]
+    gap = LANE_GAP * max(high - low for low, high in zip(lows, highs))
+    offsets, edge = [0.0], highs[0]
+    for low, high in zip(lows[1:], highs[1:]):
+        shift = edge + gap - low
+        offsets.append(shift)
+        edge = high + shift
+    return np.array([(0.0, pile_side * o, 0.0) for o in offsets])

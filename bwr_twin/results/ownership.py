@@ -7,10 +7,11 @@ the twin did not write does not hold by chance (`written_by`): the first line of
 *)`; a PNG has a text chunk `Software` of exactly WRITER; an SVG's leading metadata has WRITER as
 its creator, a PDF's document information as its Creator; an HTML export's <head> opens with the
 generator tag; an FMU's zip archive comment is exactly WRITER; an XML file's line after its
-declaration is `<!-- written by WRITER -->`. Text that merely mentions the writer anywhere else
-does not count. `check_output` is asked before any work
-starts and again just before anything is replaced, so that a refusal costs nothing and loses
-nothing.
+declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the value of its
+moov/udta/meta/ilst/(c)cmt box, where ffmpeg's `-metadata comment=WRITER` puts it) is exactly
+WRITER. Text that merely mentions the writer anywhere else does not count. `check_output` is
+asked before any work starts and again just before anything is replaced, so that a refusal costs
+nothing and loses nothing.
 """
 
 from __future__ import annotations
@@ -32,14 +33,19 @@ HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an
 HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
 FMU_WRITER = "bwr_twin.export fmu"  # an FMU's zip archive comment
 NODESET_WRITER = "bwr_twin.serve"  # a UA NodeSet2 file's comment after the XML declaration
+VIDEO_WRITER = "bwr_twin.replay video"  # an MP4's comment tag
 # The single files the twin writes, by kind of output: (suffix, what marks them as the twin's,
 # whether replacing one needs --overwrite).
 _FILE_KINDS = {"export": (".html", "bwr_twin.replay", False), "fmu": (".fmu", FMU_WRITER, False),
-               "nodeset": (".xml", NODESET_WRITER, True)}
+               "nodeset": (".xml", NODESET_WRITER, True), "video": (".mp4", VIDEO_WRITER, False)}
 _HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
 COMMENT_SIGNS = {".fis": "%", ".toml": "#", ".fll": "#", ".fcl": "(*"}  # the text files the twin writes, by suffix
 _COMMENT_ENDS = {".fcl": " *)"}  # where a comment must be closed on its line
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_MP4_COMMENT = (b"moov", b"udta", b"meta", b"ilst", b"\xa9cmt", b"data")  # the boxes down to the comment
+_MP4_FULL_BOXES = (b"meta",)  # boxes whose children follow 4 bytes of version and flags
+_MP4_DATA_HEAD = 8  # a data box's type and locale, before its value
+_MP4_VALUE_MAX = 4096  # bytes of a comment read: a mark is short
 
 
 def text_mark(writer: str, suffix: str) -> str:
@@ -52,13 +58,16 @@ def picture_metadata(writer: str, suffix: str) -> dict[str, str]:
     return {"Software" if suffix.lower() == ".png" else "Creator": writer}
 
 
-def written_by(path: Path, writer: str) -> bool:
-    """Whether the file `path` holds `writer`'s mark in its place (see the module's docstring)."""
-    suffix = path.suffix.lower()
+def written_by(path: Path, writer: str, *, suffix: str | None = None) -> bool:
+    """Whether the file `path` holds `writer`'s mark in its place (see the module's docstring);
+    `suffix` tells the kind of file where its name does not (a temporary name)."""
+    suffix = (suffix or path.suffix).lower()
     if suffix == ".fmu":
         return _zip_comment(path) == writer.encode()
     if suffix == ".xml":
         return _xml_comment(path) == writer.encode()
+    if suffix == ".mp4":
+        return _mp4_comment(path) == writer.encode()
     try:
         with path.open("rb") as f:
             data = f.read() if suffix == ".pdf" else f.read(_HEAD_WITHIN)
@@ -106,6 +115,43 @@ def _zip_comment(path: Path) -> bytes | None:
         return None
 
 
+def _mp4_comment(path: Path) -> bytes | None:
+    """The comment tag of an MP4 file, or None if it is not an MP4 file or has none. Reads the
+    box headers and seeks past the rest: the video data is never read."""
+    try:
+        with path.open("rb") as f:
+            end = f.seek(0, os.SEEK_END)
+            f.seek(4)
+            if f.read(4) != b"ftyp":
+                return None
+            return _mp4_box(f, 0, end, _MP4_COMMENT)
+    except (OSError, struct.error):  # unreadable, or a box header cut short
+        return None
+
+
+def _mp4_box(f, start: int, end: int, path: tuple[bytes, ...]) -> bytes | None:
+    """The value at the end of the box `path` among the boxes between `start` and `end`."""
+    at = start
+    while at + 8 <= end:
+        f.seek(at)
+        size, kind = struct.unpack(">I4s", f.read(8))
+        head = 8
+        if size == 1:  # a 64-bit size follows the type
+            size, head = struct.unpack(">Q", f.read(8))[0], 16
+        elif size == 0:  # the box runs to the end of its parent
+            size = end - at
+        if size < head or at + size > end:
+            return None
+        if kind == path[0]:
+            body = at + head + (4 if kind in _MP4_FULL_BOXES else 0)
+            if len(path) > 1:
+                return _mp4_box(f, body, at + size, path[1:])
+            f.seek(body)
+            return f.read(min(at + size - body, _MP4_VALUE_MAX))[_MP4_DATA_HEAD:]
+        at += size
+    return None
+
+
 def _png_text(data: bytes) -> dict[bytes, bytes]:
     """The tEXt chunks before the image data of a PNG's first bytes: keyword -> text."""
     found, at = {}, len(_PNG_SIGNATURE)
@@ -151,8 +197,8 @@ def marker(folder: Path) -> dict | None:
 
 def check_output(path: Path, kind: str, *, overwrite: bool = False, inputs: Iterable[Path] = (),
                  option: str = "--out") -> None:
-    """Refuse (BwrError, one line) to write the output `path` of `kind` ("run", "batch" or
-    "export") where that would replace something the twin did not write, an input of the same
+    """Refuse (BwrError, one line) to write the output `path` of `kind` ("run", "batch", "export",
+    "video", ...) where that would replace something the twin did not write, an input of the same
     command, or the working directory; or where the folder cannot be written.
 
     An existing output of the same kind is replaced only with `overwrite`, or resumed if RESUMABLE.

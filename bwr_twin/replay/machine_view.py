@@ -1,0 +1,143 @@
+"""One run in the replay's scene: its machine (the visual geoms of its moving bodies, posed by
+MuJoCo's kinematics from the run's joint values) and its CP trail, in the run's colour.
+
+Everything hangs under the scene frame /runs/<k>, which carries the run's place (moved aside when
+runs stand side by side) and whether it is shown. The trail is sent in chunks, each once and then
+only shown or hidden; a frame re-sends the body poses and the trail's unfinished tip.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import viser
+
+from bwr_twin.replay.geometry import BodyPoser, VisualGeom, body_vertices, visual_geoms
+from bwr_twin.replay.recording import Instant, Plan, Recording, decimate
+from bwr_twin.replay.style import GHOST_OPACITY, LINE_WIDTH, PATH_STEP, rgb
+
+TRAIL_CHUNK = 20  # trail segments per scene node; only the unfinished chunk is re-sent
+
+Paint = Literal["model", "colour", "translucent"]  # MJCF colours; the run's colour; the run's, seen through
+
+
+def segments(points: np.ndarray) -> np.ndarray:
+    """A polyline (m, 3) as (m - 1, 2, 3) line segments; one degenerate segment for a single point."""
+    if len(points) == 1:
+        points = np.repeat(points, 2, axis=0)
+    return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
+
+
+class MachineView:
+    """Run k's machine at the start pose of `plan`, painted as `paint` says (`MachineView.paint`)
+    with `colour`, its trail's; `attach` adds the recording's trail, `show` poses a time of it."""
+
+    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, colour: tuple[int, int, int],
+                 paint: tuple[Paint, float] = ("model", 1.0)):
+        self.scene, self.prefix, self.colour = scene, f"/runs/{k}", colour
+        self.poser = BodyPoser(plan.machine)
+        self.moving = [i for i, moves in enumerate(self.poser.moving) if moves]
+        moving = {self.poser.names[i] for i in self.moving}
+        self.geoms = [geom for geom in visual_geoms(plan.machine) if geom.body in moving]
+        self.root = scene.add_frame(self.prefix, show_axes=False)
+        self.bodies = [scene.add_frame(f"{self.prefix}/{self.poser.names[i]}", show_axes=False) for i in self.moving]
+        # The first run has a node per geom, as MuJoCo sizes it; the others, which mostly show in one
+        # colour, a node per body and MJCF colour: a fraction of the nodes to send and draw.
+        keys = [(geom.body, geom.rgba, geom.type in ("box", "plane", "mesh")) for geom in self.geoms]
+        self.parts = ([[geom] for geom in self.geoms] if k == 0 else
+                      [[g for g, key in zip(self.geoms, keys) if key == first] for first in dict.fromkeys(keys)])
+        self.nodes = [self._add_part(part, paint) for part in self.parts]
+        self.painted = paint
+        self.recording: Recording | None = None
+        self.place(plan.q_desired[0])
+
+    def _add_part(self, part: list[VisualGeom], paint: tuple[Paint, float]):
+        """One mesh node: a geom in its own frame, or several geoms of one body and colour merged."""
+        geom = part[0]
+        color, opacity = self._looks(geom, *paint)
+        if len(part) == 1:
+            vertices, faces, position, wxyz = geom.vertices, geom.faces, geom.position, geom.wxyz
+            name = geom.name.replace("/", "_")
+        else:
+            offsets = np.cumsum([0] + [len(g.vertices) for g in part[:-1]])
+            vertices = np.concatenate([body_vertices(g) for g in part])
+            faces = np.concatenate([g.faces + offset for g, offset in zip(part, offsets)])
+            position, wxyz, name = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), f"{geom.name.replace('/', '_')}+{len(part) - 1}"
+        return self.scene.add_mesh_simple(f"{self.prefix}/{geom.body}/{name}", vertices, faces, color=color,
+                                          opacity=opacity, flat_shading=geom.type in ("box", "plane", "mesh"),
+                                          position=position, wxyz=wxyz)
+
+    def vertices(self, q: np.ndarray) -> np.ndarray:
+        """(v, 3) the machine's vertices at joint values q, in world coordinates before any offset (m)."""
+        return self.poser.world_vertices(self.geoms, q)
+
+    def place(self, q: np.ndarray) -> None:
+        """Pose the moving bodies for joint values q."""
+        positions, orientations = self.poser.poses(q)
+        for frame, i in zip(self.bodies, self.moving):
+            frame.position = positions[i]
+            frame.wxyz = orientations[i]
+
+    def paint(self, kind: Paint, opacity: float = GHOST_OPACITY) -> None:
+        """Draw the machine in its MJCF colours, or all in the run's colour, solid or seen through
+        with `opacity`."""
+        if (kind, opacity) == self.painted:
+            return
+        for part, node in zip(self.parts, self.nodes):
+            node.color, node.opacity = self._looks(part[0], kind, opacity)
+        self.painted = (kind, opacity)
+
+    def _looks(self, geom, kind: Paint, opacity: float) -> tuple[tuple[int, int, int], float | None]:
+        """A geom's colour and opacity (None: opaque) when the machine is painted `kind`."""
+        if kind == "model":
+            return rgb(geom.rgba), geom.rgba[3] if geom.rgba[3] < 1.0 else None
+        return self.colour, opacity if kind == "translucent" else None
+
+    @property
+    def visible(self) -> bool:
+        return self.root.visible
+
+    @visible.setter
+    def visible(self, shown: bool) -> None:
+        self.root.visible = shown
+
+    def attach(self, recording: Recording) -> None:
+        """Add the recording's CP trail in chunks, each sent once and then only shown or hidden."""
+        self.recording = recording
+        samples = decimate(recording.plan.time, PATH_STEP)
+        self.trail_time = recording.plan.time[samples]
+        self.trail_points = recording.cp_actual[samples]
+        self.trail_chunks = [
+            self.scene.add_line_segments(
+                f"{self.prefix}/trail/{c}",
+                segments(self.trail_points[start : start + TRAIL_CHUNK + 1]),
+                self.colour,
+                thickness=2 * LINE_WIDTH,
+                thickness_units="screen",
+                visible=False,
+            )
+            for c, start in enumerate(range(0, len(samples) - 1, TRAIL_CHUNK))
+        ]
+        self.chunks_shown = 0
+        self.trail_tip = self.scene.add_line_segments(
+            f"{self.prefix}/trail/tip",
+            segments(self.trail_points[:1]),
+            self.colour,
+            thickness=2 * LINE_WIDTH,
+            thickness_units="screen",
+        )
+
+    def show(self, t: float) -> Instant:
+        """Pose the machine and its trail for time t (s) of the attached recording; the instant shown."""
+        assert self.recording is not None, "attach a recording first"
+        instant = self.recording.at(t)
+        self.place(instant.q_actual)
+        last = max(0, int(np.searchsorted(self.trail_time, t, side="right")) - 1)
+        complete = last // TRAIL_CHUNK  # chunks wholly before t
+        for c in range(min(complete, self.chunks_shown), max(complete, self.chunks_shown)):
+            self.trail_chunks[c].visible = c < complete
+        self.chunks_shown = complete
+        tip = np.concatenate([self.trail_points[complete * TRAIL_CHUNK : last + 1], instant.cp_actual[None]])
+        self.trail_tip.points = segments(tip)
+        return instant

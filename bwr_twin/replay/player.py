@@ -1,0 +1,131 @@
+"""The player: the one owner of what the replay shows, on a thread of its own.
+
+Time, play state and speed, which runs are shown and how the machines are painted live here and
+change only on this thread. GUI callbacks (which viser runs on its own threads) only queue actions
+through the commands below; the player applies them between frames, advances time while playing
+and sends each frame in one atomic batch.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable, Sequence
+
+import viser
+
+from bwr_twin.replay.panel import INITIAL_SPEED, SPEEDS, Panel
+from bwr_twin.replay.runs import Run
+from bwr_twin.replay.view import SceneView
+
+FRAME_RATE = 30.0  # Hz, scene and time slider (the charts' cursor follows the slider)
+READOUT_PERIOD = 0.1  # s between readout updates while playing
+PLAYER_STOP_WAIT = 5.0  # s for the player's thread to finish its frame when the replay stops
+
+
+class Player:
+    """Plays `runs` in `view` and its GUI panel on `server`; commands are safe from any thread."""
+
+    def __init__(self, server: viser.ViserServer, view: SceneView, runs: Sequence[Run]):
+        self.server, self.view, self.runs = server, view, list(runs)
+        self.start = min(float(run.recording.plan.time[0]) for run in self.runs)
+        self.end = max(float(run.recording.plan.time[-1]) for run in self.runs)
+        self.time = self.start
+        self.playing = False
+        self.speed = float(INITIAL_SPEED)
+        self.shown = [True] * len(self.runs)
+        self._actions: queue.Queue[Callable[[], None]] = queue.Queue()
+        self._stopped = threading.Event()
+        self.panel = Panel(server, self.runs, self)
+        self.play_button, self.time_slider, self.speed_slider = (
+            self.panel.play_button, self.panel.time_slider, self.panel.speed_slider)
+        self.readout = self.panel.readout
+        self._readout_at = float("-inf")  # wall time of the last readout
+        self._scene_shows = self._readout_shows = None  # the replay times they show
+        self._draw(time.perf_counter())
+        self._thread = threading.Thread(target=self._run, name="replay-player", daemon=True)
+        self._thread.start()
+
+    # -- commands: safe from any thread, applied by the player's thread between frames ----------
+
+    def toggle(self) -> None:
+        """Play, or pause; Play at the end starts over."""
+        self._actions.put(self._toggle)
+
+    def seek(self, t: float) -> None:
+        """Jump to time t (s), clamped to the runs."""
+        self._actions.put(lambda: self._seek(t))
+
+    def set_speed(self, speed: float) -> None:
+        """Play at `speed` times real time."""
+        self._actions.put(lambda: self._set_speed(speed))
+
+    def show_run(self, k: int, shown: bool) -> None:
+        """Show or hide run k: its machine, its trail, its readout row and its chart lines."""
+        self._actions.put(lambda: self._show_run(k, shown))
+
+    def paint(self, solid: int | None) -> None:
+        """Run `solid` in its MJCF colours and the rest translucent; None: each in its own colour."""
+        self._actions.put(lambda: self.view.paint(solid))
+
+    def _toggle(self) -> None:
+        if not self.playing and self.time >= self.end:
+            self.time = self.start
+        self._set_playing(not self.playing)
+
+    def _set_playing(self, playing: bool) -> None:
+        self.playing = playing
+        self.panel.show_playing(playing)
+
+    def _set_speed(self, speed: float) -> None:
+        self.speed = min(max(float(speed), SPEEDS[0]), SPEEDS[1])
+        self.speed_slider.value = self.speed
+
+    def _seek(self, t: float) -> None:
+        self.time = min(max(t, self.start), self.end)
+
+    def _show_run(self, k: int, shown: bool) -> None:
+        if self.shown[k] == shown:
+            return
+        self.shown[k] = shown
+        with self.server.atomic():
+            self.view.set_visible(k, shown)
+            self.panel.show_charts(self.shown)
+        self._scene_shows = self._readout_shows = None  # a run shown again is posed, and read out, now
+
+    # -- the loop --------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        period = 1.0 / FRAME_RATE
+        last = time.perf_counter()
+        while not self._stopped.is_set():
+            deadline = last + period
+            while (remaining := deadline - time.perf_counter()) > 0:
+                try:
+                    self._actions.get(timeout=remaining)()
+                except queue.Empty:
+                    break
+            now = time.perf_counter()
+            if self.playing:
+                self.time = min(self.time + (now - last) * self.speed, self.end)
+                if self.time >= self.end:
+                    self._set_playing(False)
+            last = now
+            self._draw(now)
+
+    def _draw(self, now: float) -> None:
+        """Send what changed: the scene and slider every frame, the readout less often."""
+        t = self.time
+        if t != self._scene_shows:
+            with self.server.atomic():
+                self.view.show(t)
+                self.time_slider.value = t
+            self._scene_shows = t
+        if t != self._readout_shows and (not self.playing or now - self._readout_at >= READOUT_PERIOD):
+            self.panel.show_readout(t, self.shown, self.end - self.start)
+            self._readout_at, self._readout_shows = now, t
+
+    def stop(self) -> None:
+        self._stopped.set()
+        self._thread.join(timeout=PLAYER_STOP_WAIT)  # a daemon: a frame stuck in viser must not hold the exit
