@@ -14,3 +14,12 @@ def is_number(value: Any) -> bool:
 
 def is_integer(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
+
+
+def reads_as_number(text: str) -> bool:
+    """Whether a CSV cell reads as a number (Python's float syntax, nan and inf included)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

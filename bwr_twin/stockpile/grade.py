@@ -13,6 +13,7 @@ import numpy as np
 
 from bwr_twin.errors import SceneError
 from bwr_twin.textfile import read_text
+from bwr_twin.values import reads_as_number
 
 _BLOCK = 4096  # AR(1) values drawn at a time: the values never depend on how they were asked for
 
@@ -104,7 +105,7 @@ def _read_rows(file: Path) -> tuple[np.ndarray, np.ndarray]:
         raise SceneError(f"{file}: cannot read the recorded grade ({exc})") from None
     lines = [(number, line) for number, line in enumerate(text.split("\n"), start=1)
              if line.strip() and not line.lstrip().startswith("#")]
-    if lines and not _is_number(lines[0][1].split(",")[0]):
+    if lines and not reads_as_number(lines[0][1].split(",")[0]):
         lines = lines[1:]  # a header line
     t, grade = [], []
     for number, line in lines:
@@ -113,7 +114,7 @@ def _read_rows(file: Path) -> tuple[np.ndarray, np.ndarray]:
             raise SceneError(f"{file}: line {number} must be two numbers t,grade (s, grade), "
                              f"got {line.strip()!r}")
         for column, (name, cell) in enumerate(zip(("t", "grade"), cells), start=1):
-            if not _is_number(cell) or not math.isfinite(float(cell)):
+            if not reads_as_number(cell) or not math.isfinite(float(cell)):
                 raise SceneError(f"{file}: line {number}, column {column} ({name}): {cell!r} "
                                  "is not a finite number")
         if t and not float(cells[0]) > t[-1]:
@@ -124,11 +125,3 @@ def _read_rows(file: Path) -> tuple[np.ndarray, np.ndarray]:
     if not t:
         raise SceneError(f"{file}: holds no rows t,grade")
     return np.array(t), np.array(grade)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True

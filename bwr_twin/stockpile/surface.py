@@ -16,6 +16,7 @@ import numpy as np
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
 from bwr_twin.textfile import read_text
+from bwr_twin.values import reads_as_number
 
 YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
 MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
@@ -192,12 +193,12 @@ def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.nda
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{where}: cannot read it ({exc})") from None
     rows = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    if rows and not _is_number(rows[0].split(",")[0]):
+    if rows and not reads_as_number(rows[0].split(",")[0]):
         rows = rows[1:]  # a header line
     points = []
     for number, line in enumerate(rows, start=1):
         cells = line.split(",")
-        if len(cells) != 3 or not all(_is_number(c) for c in cells):
+        if len(cells) != 3 or not all(reads_as_number(c) for c in cells):
             raise SceneError(f"{where}: data row {number} must be three numbers x,y,z (m), got {line.strip()!r}")
         points.append([float(c) for c in cells])
     if len(points) < 3:
@@ -207,14 +208,6 @@ def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.nda
     if np.ptp(xs) == 0 or np.ptp(ys) == 0:
         raise SceneError(f"{where}: the points lie on a line: they span no area")
     return xs, ys, zs
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def _check_finite(where: str, *arrays: np.ndarray) -> None:
