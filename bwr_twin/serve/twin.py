@@ -7,6 +7,7 @@ Nothing here knows of OPC UA or of clocks; `bwr_twin.serve.clock` decides when a
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -18,6 +19,8 @@ END_STOP_MARGIN = 1e-3  # share of a joint's range: closer than this to an end s
 # Limit switch changes kept until taken: a joint chattering on its limit through a long Step(n),
 # or a user of the twin that never takes them, keeps the latest ones only.
 SWITCHES_KEPT = 1000
+# The per-axis values read with the encoders, in the order `Twin.measured` holds them.
+MEASURED = ("EncoderPosition", "EncoderVelocity", "ReferencePosition", "ReferenceVelocity", "ReferenceAcceleration")
 
 
 class Twin:
@@ -30,9 +33,16 @@ class Twin:
         reading: the latest values of the published variables (see `bwr_twin.serve.address_space`),
             SI units: encoder positions (m, rad) and velocities (m/s, rad/s) at the start of period
             k, the reference at k, the forces the drives applied over period k - 1 (N, N m).
+        measured, at_limit, sim_time: the same as Python values, without building `reading`:
+            MEASURED's (3,) lists in its order, the three limit switches, SimTime (s);
+            `drive_applied()` and `reclaim_rate()` give the rest.
 
     Every period's limit switches are read, so that a switch that closes and opens again
     between two publications is still seen: `take_limit_switches` hands over the changes.
+
+    The FMU advances and reads the twin every control period, so a period here costs little more
+    than the loop's own: what is read is kept as Python floats and bools (numpy's operations on
+    three values cost ten times more), and `reading`'s arrays are built only when asked for.
     """
 
     def __init__(self, scene: Scene):
@@ -46,12 +56,13 @@ class Twin:
         self.period = loop.period
         machine = loop.machine
         margin = END_STOP_MARGIN * np.nan_to_num(machine.joint_range[:, 1] - machine.joint_range[:, 0], posinf=0.0)
-        self._low = np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin)  # m, rad
-        self._high = np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin)
+        # m, rad, as Python floats: compared with the true joint every period
+        self._low = np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin).tolist()
+        self._high = np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin).tolist()
         self._command = np.zeros((1, 3))  # N, N m: the drive forces held over a period
-        self.reading: dict[str, object] = {"DriveApplied": np.zeros(3), "ReclaimRate": 0.0}
         self._switches: deque[tuple[int, bool, float]] = deque(maxlen=SWITCHES_KEPT)
-        self._at_limit = None  # the switches of the period before: none at the path's start
+        self.at_limit: tuple[bool, bool, bool] | None = None  # none before the first reading: no change to report
+        self._reading: dict[str, object] | None = None
         self._measure()
 
     @property
@@ -76,16 +87,37 @@ class Twin:
     def samples(self) -> int:
         return self.loop.samples
 
-    def advance(self, drive_force: np.ndarray) -> None:
+    @property
+    def reading(self) -> dict[str, object]:
+        """The published values by name, per axis as (3,) arrays: built when first asked for in a period."""
+        if self._reading is None:
+            self._reading = {
+                "DriveApplied": np.array(self.drive_applied()),
+                "ReclaimRate": self.reclaim_rate(),
+                "SimTime": self.sim_time,
+                "PeriodsLeft": self.periods_left,
+                **{name: np.array(values) for name, values in zip(MEASURED, self.measured)},
+                "AtLimit": np.array(self.at_limit),
+            }
+        return self._reading
+
+    def drive_applied(self) -> list[float]:
+        """The forces the drives applied over the last period (N, N m); zero before the first."""
+        return self.loop.drive_force[0].tolist() if self.loop.k > 0 else [0.0, 0.0, 0.0]
+
+    def reclaim_rate(self) -> float:
+        """What the wheel reclaimed over the last period, t/h; zero before the first or without a stockpile."""
+        rate = self.loop.reclaim_rate
+        return float(rate[0]) if rate is not None and self.loop.k > 0 else 0.0
+
+    def advance(self, drive_force: np.ndarray | Sequence[float]) -> None:
         """Hold the (3,) drive forces (N, N m, N m) over one control period, then read the encoders."""
+        loop = self.loop
         self._command[0] = drive_force
-        self.loop.advance(self._command)  # inside the server's mujoco_warnings(): MuJoCo prints nothing
-        self.reading["DriveApplied"] = self.loop.drive_force[0].copy()
-        if self.loop.reclaim_rate is not None:
-            self.reading["ReclaimRate"] = float(self.loop.reclaim_rate[0])  # t/h
-        if not self.loop.done:
+        loop.advance(self._command)  # inside the server's mujoco_warnings(): MuJoCo prints nothing
+        self._reading = None
+        if loop.k < loop.samples:  # at the end, the reading keeps the last period's encoders
             self._measure()
-        self.reading["PeriodsLeft"] = self.periods_left
 
     def set_rate_trim(self, trim: float | None) -> None:
         """A bench reclaim's slew-speed trim set from outside from the next period on, held within the
@@ -107,25 +139,22 @@ class Twin:
         return result
 
     def _measure(self) -> None:
+        """Read the encoders (once a period: their velocity filter has state), the limit switches
+        and the reference of period k."""
         loop = self.loop
-        k = loop.k
         q_measured, qd_measured = loop.measure()
-        q_true = loop.q_true[0]
-        at_limit = (q_true <= self._low) | (q_true >= self._high)  # the true joint, not the encoder
-        before = self._at_limit
-        if before is not None and at_limit.tobytes() != before.tobytes():  # the cheapest test of three
-            self._switches.extend((int(j), bool(at_limit[j]), float(loop.time[k]))
-                                  for j in np.flatnonzero(at_limit != before))
-        self._at_limit = at_limit
-        # The planned path's rows, or the bench plan's reference of this period: never written.
-        position, velocity, acceleration = (value.reshape(-1, 3)[0].copy() for value in loop.reference_now())
-        self.reading.update({
-            "SimTime": float(loop.time[k]),
-            "PeriodsLeft": self.periods_left,
-            "EncoderPosition": q_measured[0].copy(),
-            "EncoderVelocity": qd_measured[0].copy(),
-            "ReferencePosition": position,
-            "ReferenceVelocity": velocity,
-            "ReferenceAcceleration": acceleration,
-            "AtLimit": at_limit,
-        })
+        self.sim_time = sim_time = float(loop.time[loop.k])
+        # The true joint, not the encoder; three Python comparisons cost a tenth of numpy's.
+        (q0, q1, q2), (low0, low1, low2), (high0, high1, high2) = loop.q_true[0].tolist(), self._low, self._high
+        at_limit = (q0 <= low0 or q0 >= high0, q1 <= low1 or q1 >= high1, q2 <= low2 or q2 >= high2)
+        before = self.at_limit
+        if before is not None and at_limit != before:
+            self._switches.extend((j, now, sim_time) for j, (now, was) in enumerate(zip(at_limit, before))
+                                  if now != was)
+        self.at_limit = at_limit
+        # The path's (3,) rows, or the bench plan's (1, 3) reference, which changes in place: copied.
+        position, velocity, acceleration = loop.reference_now()
+        if position.ndim > 1:
+            position, velocity, acceleration = position[0], velocity[0], acceleration[0]
+        self.measured = (q_measured[0].tolist(), qd_measured[0].tolist(), position.tolist(), velocity.tolist(),
+                         acceleration.tolist())
