@@ -389,7 +389,7 @@ def test_the_scanned_pile_converges_to_the_truth_as_the_machine_travels_past_it(
         assert set(scans) == {"t", "origin", "hits"} and scans["hits"].shape == (metrics["scans"], 191, 3)
         assert scans["hits"].dtype == np.float32
         assert np.isnan(scans["hits"][..., 0]).mean() == pytest.approx(1 - metrics["hit_share"])
-        assert set(known) == {"x", "y", "z", "seen", "last_seen"}
+        assert set(known) == {"x", "y", "z", "seen", "last_seen", "t_end"}
         never = known["seen"] == 0
         np.testing.assert_array_equal(np.isnan(known["z"]), never)
         np.testing.assert_array_equal(np.isnan(known["last_seen"]), never)

@@ -26,6 +26,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from bwr_twin.config.bounds import check_bounds
+from bwr_twin.config.faults import FaultSection, check_faults
 from bwr_twin.config.plugins import (
     CONTROLLERS,
     RATE_CONTROLS,
@@ -177,6 +178,12 @@ class SensingSection:
     # The machine's 2D laser scanners: None scans with them if the machine has any and the scene
     # a stockpile; false leaves them off (for comparison); true asks for them.
     scanners: bool | None = None
+    # The pile a bench reclaim is planned on: "scanned", the pile its runs know from their scans
+    # after the [reclaim.survey] pass (None: when they scan), or "exact", the true pile.
+    pile_model: Literal["scanned", "exact"] | None = None
+    # What the rate loop reads: "measured", the machine's belt scale and wheel current with their
+    # delay and noise (None: when its MJCF describes them), or "exact", the true rate and power.
+    rate_signals: Literal["measured", "exact"] | None = None
 
 
 @dataclass(frozen=True)
@@ -208,6 +215,16 @@ class StopSection:
 
 
 @dataclass(frozen=True)
+class SurveySection:
+    """`[reclaim.survey]`: a pass with the boom's scanners before the plan is made, as automatic
+    reclaimers survey their pile: the machine moves from 'start' through the waypoints, each
+    reached at rest by the quickest smooth move its rated speeds and the reclaim's
+    accelerations allow, and the plan starts where the last one leaves it."""
+
+    waypoints: tuple[Vec3, ...]  # travel m, slew deg, luff deg
+
+
+@dataclass(frozen=True)
 class ReclaimSection:
     """`[reclaim]`: bench reclaiming planned from the pile (bwr_twin.planning.bench), instead
     of [path]'s via points."""
@@ -223,6 +240,7 @@ class ReclaimSection:
     speed_law: Literal["cosine", "constant"] = "cosine"  # slew speed ~ 1/cos(slew), or constant
     cap_angle: float = 70.0  # deg: beyond it the cosine law holds its speed
     rate_control: RateControlSection = field(default_factory=RateControlSection)
+    survey: SurveySection | None = None
 
 
 @dataclass(frozen=True)
@@ -239,6 +257,7 @@ class Scene:
     stockpile: StockpileSection | None = None
     digging: DiggingSection | None = None
     sensing: SensingSection = field(default_factory=SensingSection)
+    faults: tuple[FaultSection, ...] = ()  # [[faults]]: what fails, when, for how long (docs/sensing.md)
 
     @property
     def controller_mjcf(self) -> Path:
@@ -609,8 +628,9 @@ def _check_rules(scene: Scene) -> None:
     _check_stockpile(scene)
     if scene.reclaim is not None:
         _check_reclaim(scene)
-    if scene.sensing.scanners and scene.stockpile is None:
-        raise SceneError(f"{p}: 'sensing.scanners' is true, but the scene has no [stockpile] to scan")
+    _check_sensing(scene)
+    runs_until = scene.trajectory.via_points[-1].t if scene.trajectory is not None else None
+    check_faults(p, scene.faults, runs_until)
     files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
     files |= {f"controller.{k}": v for k, v in scene.controller.to_dict().items() if isinstance(v, Path)}
     for key, file in files.items():
@@ -676,6 +696,24 @@ def _check_reclaim(scene: Scene) -> None:
                          "without a digging load the wheel's power does not follow the rate")
 
 
+def _check_sensing(scene: Scene) -> None:
+    """[sensing] and [reclaim.survey] against each other; the machine's scanners are checked as a run starts."""
+    p, sensing = scene.path, scene.sensing
+    if sensing.scanners and scene.stockpile is None:
+        raise SceneError(f"{p}: 'sensing.scanners' is true, but the scene has no [stockpile] to scan")
+    survey = scene.reclaim.survey if scene.reclaim is not None else None
+    if sensing.pile_model == "scanned":
+        if scene.reclaim is None:
+            raise SceneError(f"{p}: 'sensing.pile_model' \"scanned\" is the pile a [reclaim] is planned on, "
+                             "but the scene has no [reclaim]")
+        if sensing.scanners is False:
+            raise SceneError(f"{p}: 'sensing.pile_model' \"scanned\" needs the scanners, but 'sensing.scanners' "
+                             "is false")
+    if survey is not None and not survey.waypoints:
+        raise SceneError(f"{p}: 'reclaim.survey.waypoints' needs at least one waypoint [travel m, slew deg, "
+                         "luff deg]")
+
+
 def _check_stockpile(scene: Scene) -> None:
     p, pile, digging = scene.path, scene.stockpile, scene.digging
     if digging is not None:
@@ -707,6 +745,8 @@ def _check_stockpile(scene: Scene) -> None:
 
 
 def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value):
+        return _plain(dataclasses.asdict(value))
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -19,10 +19,14 @@ def scene_toml(scene: Scene, header: str = "") -> str:
     """The scene as TOML text, after `header` (written as comment lines)."""
     lines = [f"# {line}".rstrip() for line in header.splitlines()]
     for field, table in scene.to_dict().items():
-        if field == "path" or not isinstance(table, dict):
+        if field == "path":
             continue
-        lines += ["", f"[{_TABLE_NAMES.get(field, field)}]"]
-        lines += [f"{key} = {_value(value)}" for key, value in table.items() if value is not None]
+        for entry in table if isinstance(table, list) else [table]:  # a list of tables: [[faults]]
+            if not isinstance(entry, dict):
+                continue
+            name = _TABLE_NAMES.get(field, field)
+            lines += ["", f"[[{name}]]" if isinstance(table, list) else f"[{name}]"]
+            lines += [f"{key} = {_value(value)}" for key, value in entry.items() if value is not None]
     return "\n".join(lines).lstrip("\n") + "\n"
 
 

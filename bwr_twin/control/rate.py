@@ -50,8 +50,11 @@ class RateSignals:
 
     belt_rate: np.ndarray  # (runs,) t/h, the belt scale on the boom conveyor
     wheel_power: np.ndarray  # (runs,) W, the wheel drive (its idle power when there is no digging load)
+    # With [sensing] rate_signals "measured", the scale's reading (late and noisy) and the power
+    # the drive reports from the motor's current; else the true rate and power.
     cutting: np.ndarray  # (runs,) bool: the wheel is within the planned cut of a slew pass
     steady: np.ndarray  # (runs,) bool: ... where the face allows the target (planned steady cutting)
+    wheel_current: np.ndarray | None = None  # (runs,) A of the wheel motor, where the machine reports it
 
 
 class RateControl:

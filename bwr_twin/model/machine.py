@@ -24,6 +24,7 @@ import numpy as np
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.model.dynamics import ChainDynamics
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
+from bwr_twin.sensing.instruments import read_instruments
 from bwr_twin.sensing.scanner import Scanner, read_scanners
 
 AXES = ("travel", "slew", "luff")
@@ -132,6 +133,8 @@ class Machine:
             (only those it has); `name` the `<mujoco model=...>` name.
         scanners: the 2D laser scanners on the machine, its sites named `scanner...` with their
             `<custom>` numerics (bwr_twin.sensing.scanner); () if it has none.
+        belt_scale, wheel_motor: the rate instruments its `<custom>` numerics describe
+            (bwr_twin.sensing.instruments), each None if it has none.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
@@ -164,6 +167,7 @@ class Machine:
         self.identification = {key: text for key in IDENTIFICATION_KEYS if (text := self._text(key)) is not None}
         self.name = self.model.names[:self.model.names.index(b"\0")].decode()
         self.scanners: tuple[Scanner, ...] = read_scanners(self.model, self.path)
+        self.belt_scale, self.wheel_motor = read_instruments(self.model, self.path)
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).

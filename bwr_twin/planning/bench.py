@@ -31,7 +31,7 @@ from bwr_twin.errors import EnvelopeError, SceneError
 from bwr_twin.model.machine import AXES, Machine, describe
 from bwr_twin.planning.plan import BenchPlan, Move, Pass, SpeedLaw, end_of
 from bwr_twin.stockpile.cutting import Cutter
-from bwr_twin.stockpile.surface import Surface, build_surface
+from bwr_twin.stockpile.surface import YARD_FLOOR, Surface, build_surface
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell
@@ -45,23 +45,83 @@ MIN_MOVE = 1.0  # s: the shortest move
 
 def plan_scene(scene: Scene) -> BenchPlan:
     """The bench plan of a scene with [reclaim], on its pile and machine (with its payloads);
-    SceneError naming the key and the limit if it cannot be done. Planned once per scene."""
-    return _plan(scene.reclaim, scene.stockpile, scene.machine.mjcf, scene.plant.payload,
-                 scene.simulation.control_period, scene.path)
+    SceneError naming the key and the limit if it cannot be done. Planned once per scene.
+
+    With a [reclaim.survey], the survey's moves come first and the benches are planned from where
+    they leave the machine, here on the true pile: what a run on its scanned pile expects (it plans
+    its own benches at the survey's end, `plan_after_survey`)."""
+    survey = survey_plan(scene)
+    if survey is None:
+        return _plan(scene.reclaim, scene.stockpile, scene.machine.mjcf, scene.plant.payload,
+                     scene.simulation.control_period, scene.path)
+    benches = _plan(scene.reclaim, scene.stockpile, scene.machine.mjcf, scene.plant.payload,
+                    scene.simulation.control_period, scene.path, tuple(survey.segments[-1].end.tolist()),
+                    survey.nominal_duration)
+    return after_survey(survey, benches)
+
+
+@functools.lru_cache(maxsize=8)
+def survey_plan(scene: Scene) -> BenchPlan | None:
+    """The [reclaim.survey]'s moves through its waypoints from 'start', as a plan of moves alone;
+    None without a survey. SceneError naming the waypoint if one is outside the envelope."""
+    reclaim = scene.reclaim
+    if reclaim.survey is None:
+        return None
+    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+    where = f"{scene.path}: [reclaim]"
+    planner = _Planner(reclaim, machine, None, scene.stockpile.bulk_density, scene.simulation.control_period, where)
+    moves, q = [], planner.start
+    for i, (travel, slew, luff) in enumerate(reclaim.survey.waypoints):
+        waypoint = np.array([travel, np.radians(slew), np.radians(luff)])
+        try:
+            machine.check_envelope(waypoint, label=f"'survey.waypoints[{i + 1}]'")
+        except EnvelopeError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+        moves.append(planner.quickest_move(q, waypoint, 0, "survey"))
+        q = waypoint
+    duration = sum(m.duration for m in moves)
+    return BenchPlan(tuple(moves), planner.start, planner.law, planner.acceleration, planner.rated, None, (),
+                     scene.stockpile.bulk_density, duration, duration + planner.period)
+
+
+def plan_after_survey(scene: Scene, machine: Machine, heights: np.ndarray) -> BenchPlan:
+    """The survey's moves, then the benches planned from where they leave the machine on the pile
+    of `heights` (ny, nx) m on the scene's grid: the pile a run knows from its scans, where a
+    cell no scan has reached (NaN) counts as the yard floor. SceneError if no bench can be planned."""
+    survey = survey_plan(scene)
+    surface = build_surface(scene.stockpile, scene.path)
+    known = Surface(surface.x, surface.y, np.where(np.isnan(heights), YARD_FLOOR, heights))
+    where = f"{scene.path}: [reclaim] on the pile scanned by the survey"
+    planner = _Planner(scene.reclaim, machine, known, scene.stockpile.bulk_density,
+                       scene.simulation.control_period, where, survey.segments[-1].end, survey.nominal_duration)
+    return after_survey(survey, planner.plan())
+
+
+def after_survey(survey: BenchPlan, benches: BenchPlan) -> BenchPlan:
+    """One plan: the survey's moves, then the benches planned from where they end."""
+    return replace(benches, segments=survey.segments + benches.segments, start=survey.start,
+                   nominal_duration=survey.nominal_duration + benches.nominal_duration,
+                   longest_duration=survey.nominal_duration + benches.longest_duration)
 
 
 @functools.lru_cache(maxsize=8)
 def _plan(reclaim: ReclaimSection, stockpile: StockpileSection, mjcf: Path, payload: tuple, period: float,
-          scene_path: Path) -> BenchPlan:
+          scene_path: Path, start: tuple | None = None, elapsed: float = 0.0) -> BenchPlan:
     machine = Machine(mjcf, payloads=payload)
     surface = build_surface(stockpile, scene_path)
     where = f"{scene_path}: [reclaim]"
-    return _Planner(reclaim, machine, surface, stockpile.bulk_density, period, where).plan()
+    return _Planner(reclaim, machine, surface, stockpile.bulk_density, period, where,
+                    None if start is None else np.array(start), elapsed).plan()
 
 
 class _Planner:
-    def __init__(self, settings: ReclaimSection, machine: Machine, surface: Surface, density: float,
-                 period: float, where: str):
+    def __init__(self, settings: ReclaimSection, machine: Machine, surface: Surface | None, density: float,
+                 period: float, where: str, start: np.ndarray | None = None, elapsed: float = 0.0):
+        """`start` (3,): where the plan starts, if not at 'start' (a survey's end), `elapsed` s
+        after the run's start (a stop after a time counts from the run's start). Without a
+        `surface` it plans moves alone."""
+        if elapsed and settings.stop.time is not None:
+            settings = replace(settings, stop=replace(settings.stop, time=settings.stop.time - elapsed))
         self.s, self.machine, self.surface, self.density, self.period = settings, machine, surface, density, period
         self.where = where
         wheel = machine.wheel
@@ -71,10 +131,13 @@ class _Planner:
         self.acceleration = np.array([settings.acceleration[0], *np.radians(settings.acceleration[1:])])
         self.rated = machine.rated_speed
         self.slew_limits = tuple(np.radians(settings.slew_limits))
-        self.start = np.array([settings.start[0], *np.radians(settings.start[1:])])
+        self.start = np.array([settings.start[0], *np.radians(settings.start[1:])]) if start is None else start
+        self.start_name = "'start'" if start is None else "the survey's last waypoint"
         self._check_settings()
         self.law = SpeedLaw(settings.target_rate * KG_PER_T / SECONDS_PER_HOUR / density, settings.speed_law,
                             np.radians(settings.cap_angle), float(self.rated[1]))
+        if surface is None:
+            return
         self.dig = Cutter(surface, wheel, 1)  # the planner's copy of the pile, dug as it plans
         self.top = float(surface.z.max())
         g = machine.geometry
@@ -221,17 +284,17 @@ class _Planner:
         # Onto the bench: from the last bench, slew clear, then travel and luff together.
         target = np.array([travels[0], turns[0], luff])
         if bench == 0:
-            segments.append(self._move(q, target, bench, "approach"))
+            segments.append(self.quickest_move(q, target, bench, "approach"))
         else:
             clear = np.array([q[0], turns[0], q[2]])
-            segments.append(self._move(q, clear, bench, "slew clear"))
-            segments.append(self._move(clear, target, bench, "step down"))
+            segments.append(self.quickest_move(q, clear, bench, "slew clear"))
+            segments.append(self.quickest_move(clear, target, bench, "step down"))
         for segment in segments:
             volume += self._dig_move(segment)
         for i, travel in enumerate(travels):
             start, end = turns[i], turns[i + 1]
             if i > 0:
-                step = self._move(np.array([travels[i - 1], start, luff]), np.array([travel, start, luff]), bench,
+                step = self.quickest_move(np.array([travels[i - 1], start, luff]), np.array([travel, start, luff]), bench,
                                   "travel step")
                 segments.append(step)
                 volume += self._dig_move(step)
@@ -321,7 +384,7 @@ class _Planner:
         clear = float(self.start[0])
         if self._window(clear, luff) is not None:
             raise SceneError(
-                f"{self.where}: at 'start' travel {clear:g} m the wheel would already cut the pile on bench "
+                f"{self.where}: at {self.start_name} travel {clear:g} m the wheel would already cut the pile on bench "
                 f"{bench + 1}: start farther from the pile"
             )
         deep = clear
@@ -387,7 +450,7 @@ class _Planner:
 
     # -- timing -------------------------------------------------------------------------------
 
-    def _move(self, start: np.ndarray, end: np.ndarray, bench: int, kind: str) -> Move:
+    def quickest_move(self, start: np.ndarray, end: np.ndarray, bench: int, kind: str) -> Move:
         """A cubic from start to end, as fast as the rated speeds and the accelerations allow: a
         cubic's top speed is 1.5 x delta / T and its top acceleration 6 x delta / T^2."""
         delta = np.abs(end - start)

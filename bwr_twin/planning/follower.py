@@ -117,6 +117,26 @@ class BenchReference:
         return Phase(self.bench.copy(), np.array(cutting, dtype=bool), np.array(steady, dtype=bool),
                      np.array(depth, dtype=float))
 
+    def continue_with(self, plan: BenchPlan) -> None:
+        """Every run has finished the plan it followed (a survey) and rests: go on with `plan`,
+        whose segments begin with that plan's. `samples` grows by the most the new segments may take."""
+        first = len(self.plan.segments)
+        self.plan = plan
+        self._ends.update({i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments)
+                           if isinstance(s, Move) and i >= first})
+        stage = segment_stage(plan, first)
+        for run in range(self.runs):
+            self.finished[run] = False
+            self.segment[run] = first
+            self.bench[run] = plan.segments[first].bench
+            self._elapsed[run] = 0.0
+            time, at, _ = self._started[run][-1]
+            self._started[run][-1] = (time, at, stage)
+            self._plan_period(run)
+        before = sum(segment.duration for segment in plan.segments[:first])  # moves alone
+        self.samples = self.k + int(np.ceil((plan.longest_duration - before) / self.period - 1e-9)) + 1
+        self.time = np.arange(self.samples) * self.period
+
     def current_pass(self, run: int) -> Pass | None:
         if self.finished[run]:
             return None
@@ -220,11 +240,11 @@ class BenchReference:
 
 @dataclass(frozen=True)
 class Stage:
-    """Where a segment of a bench plan starts, typed: "bench" where a bench's moves begin, "pass"
-    where a pass does (`number` is the bench, 1-based, or the pass's number), "move" for a travel
-    step or a step down, "end" after the last."""
+    """Where a segment of a bench plan starts, typed: "survey" where a survey's move does, "bench"
+    where a bench's moves begin, "pass" where a pass does (`number` is the bench, 1-based, or the
+    pass's number), "move" for a travel step or a step down, "end" after the last."""
 
-    kind: Literal["bench", "pass", "move", "end"]
+    kind: Literal["survey", "bench", "pass", "move", "end"]
     number: int | None = None
 
     @property
@@ -243,6 +263,8 @@ def segment_stage(plan: BenchPlan, index: int) -> Stage:
     segment = plan.segments[index]
     if isinstance(segment, Pass):
         return Stage("pass", segment.number)
+    if segment.kind == "survey":
+        return Stage("survey")
     return Stage("bench", segment.bench + 1) if segment.kind in ("approach", "slew clear") else Stage("move")
 
 

@@ -34,8 +34,35 @@ def summary_table(metrics: dict) -> str:
             lines.append(plan_line(reclaim))
         if reclaim["spill_t"] > 0:
             lines.append(f"warning: the wheel dug more than its buckets hold: {reclaim['spill_t']:.1f} t spilled")
+    scan = metrics.get("scan")
+    if scan is not None and scan.get("plan_start") is not None:
+        lines.append(scan_line("the benches planned on the scanned pile", scan["plan_start"]))
+    for fault in metrics.get("faults", ()):
+        lines.append(fault_line(fault))
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
+
+
+def scan_line(when: str, known: dict) -> str:
+    """The scanned pile's tonnes against the truth over the cells seen (bwr_twin.sensing.survey)."""
+    return (f"{when} at {known['time_s']:.1f} s: {known['scanned_t']:,.0f} t scanned against {known['true_t']:,.0f} t "
+            f"true over the cells seen ({100 * known['error_share']:+.2f} %), "
+            f"{100 * known['footprint_seen_share']:.0f} % of the pile's footprint seen")
+
+
+def fault_line(fault: dict) -> str:
+    """A scheduled fault and the largest errors during and after it (bwr_twin.sim.fault_report)."""
+    what = fault["kind"] + "".join(f" {fault[k]}" for k in ("axis", "scanner") if k in fault)
+    if fault["end_s"] is None:
+        return f"fault {what} from {fault['start_s']:g} s: never acted, the run ended first"
+
+    def errors(window: dict | None) -> str:
+        if window is None or None in window.values():
+            return "none (no sample)"
+        return ", ".join(f"{key.partition('_')[0]} {value:.4g} {key.partition('_')[2]}" for key, value in window.items())
+
+    return (f"fault {what} {fault['start_s']:g}-{fault['end_s']:g} s: largest errors during {errors(fault['error_max_during'])}; "
+            f"after {errors(fault['error_max_after'])}")
 
 
 def plan_line(reclaim: dict) -> str:

@@ -4,7 +4,9 @@
                 dropped or met nothing; with several scanners, `scanner` (n,) names which, and
                 a scanner with fewer rays than another has its rows padded with NaN
     survey.npz  the pile known from the scans at the end: x, y (grid lines, m), z (ny, nx) m
-                (NaN: unknown), seen (hits each cell took), last_seen (s, NaN: never)
+                (NaN: unknown), seen (hits each cell took), last_seen (s, NaN: never), t_end
+                (s); after a [reclaim.survey], the same at the plan's start: z_plan,
+                seen_plan, last_seen_plan and t_plan
 
 Hits are kept as float32: 8 um at 100 m from the origin, far below a scanner's noise, and half
 the memory and disk of float64.
@@ -77,10 +79,12 @@ class ScanRecord:
     z: np.ndarray  # (ny, nx) m, NaN: unknown
     seen: np.ndarray  # (ny, nx) hits
     last_seen: np.ndarray  # (ny, nx) s, NaN: never
+    t_end: float = np.nan  # s: the time of z, seen and last_seen
+    plan_start: KnownPile | None = None  # the pile known as the benches were planned, after a survey
 
     @classmethod
     def of(cls, scanners: Sequence, shares: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], x: np.ndarray,
-           y: np.ndarray, z: np.ndarray, seen: np.ndarray, last_seen: np.ndarray) -> ScanRecord:
+           y: np.ndarray, end: KnownPile, plan_start: KnownPile | None = None) -> ScanRecord:
         """From each scanner's share of a run's scans (ScanLog.share), merged in time order."""
         if len(shares) == 1:
             (t, origin, hits), names = shares[0], None
@@ -93,7 +97,7 @@ class ScanRecord:
                                           constant_values=np.nan) for share in shares])[order]
             names = np.concatenate([np.full(len(share[0]), s.name) for s, share in zip(scanners, shares)])[order]
             t = t[order]
-        return cls(t, origin, hits, names, x, y, z, seen, last_seen)
+        return cls(t, origin, hits, names, x, y, end.z, end.seen, end.last_seen, end.time, plan_start)
 
     def write(self, folder: Path) -> None:
         """scans.npz and survey.npz in `folder`."""
@@ -101,5 +105,19 @@ class ScanRecord:
         if self.scanner is not None:
             scans["scanner"] = self.scanner
         np.savez(folder / SCANS_FILE, **scans)  # uncompressed: noisy float32 hardly compresses, and fast
-        np.savez_compressed(folder / SURVEY_FILE, x=self.x, y=self.y, z=self.z, seen=self.seen,
-                            last_seen=self.last_seen)
+        known = {"z": self.z, "seen": self.seen, "last_seen": self.last_seen, "t_end": self.t_end}
+        if self.plan_start is not None:
+            p = self.plan_start
+            known |= {"z_plan": p.z, "seen_plan": p.seen, "last_seen_plan": p.last_seen, "t_plan": p.time}
+        np.savez_compressed(folder / SURVEY_FILE, x=self.x, y=self.y, **known)
+
+
+@dataclass(frozen=True)
+class KnownPile:
+    """A run's scanned pile at one time: heights (ny, nx) m (NaN: unknown), hits per cell and
+    each cell's last-seen time (s, NaN: never)."""
+
+    time: float  # s
+    z: np.ndarray
+    seen: np.ndarray
+    last_seen: np.ndarray

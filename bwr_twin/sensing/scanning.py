@@ -23,8 +23,9 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError, SceneError
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import compile_model
+from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.noise import ScanNoise
-from bwr_twin.sensing.outputs import ScanLog, ScanRecord
+from bwr_twin.sensing.outputs import KnownPile, ScanLog, ScanRecord
 from bwr_twin.sensing.raycast import grid_of, ray_distance
 from bwr_twin.sensing.scanner import Scanner, read_scanners, site_pose
 from bwr_twin.sensing.survey import Survey
@@ -46,6 +47,25 @@ def active_scanners(scene: Scene, machine: Machine) -> tuple[Scanner, ...]:
         raise SceneError(f"{scene.path}: 'sensing.scanners' is true, but {machine.path} has no scanner site "
                          "(a <site> named 'scanner...' with its custom numerics, docs/sensing.md)")
     return machine.scanners
+
+
+def pile_model(scene: Scene, scanners: Sequence[Scanner]) -> str:
+    """The pile a bench reclaim's benches are planned on: "scanned" or "exact" ([sensing]
+    pile_model; by default "scanned" when the runs scan). SceneError if the scanned pile is asked
+    for without scanners, or without a [reclaim.survey] to scan the pile before the plan."""
+    wanted = scene.sensing.pile_model
+    if scene.reclaim is None:
+        return "exact"
+    if wanted == "scanned" and not scanners:
+        raise SceneError(f"{scene.path}: 'sensing.pile_model' is \"scanned\", but the runs do not scan: "
+                         f"{scene.machine.mjcf.name} has no scanner site (docs/sensing.md)")
+    model = wanted or ("scanned" if scanners else "exact")
+    if model == "scanned" and scene.reclaim.survey is None:
+        default = "" if wanted else " (the default when the machine scans)"
+        raise SceneError(f"{scene.path}: the benches are planned on the scanned pile{default}, which needs a "
+                         "[reclaim.survey] to scan it first: give its 'waypoints' [travel m, slew deg, luff deg], "
+                         "or set 'sensing.pile_model' = \"exact\" to plan on the true pile")
+    return model
 
 
 def planned_scanners(scene: Scene) -> tuple[Scanner, ...]:
@@ -76,9 +96,11 @@ class Scanning:
     """
 
     def __init__(self, scanners: Sequence[Scanner], surface: Surface, seeds: Sequence[int], period: float,
-                 density: np.ndarray, *, keep_scans: bool = True):
+                 density: np.ndarray, *, keep_scans: bool = True, faults: Faults | None = None):
         """`seeds` and `density` (kg/m^3): each run's; `keep_scans=False` keeps only the latest scan
-        (a lockstep that keeps no results: its memory stays bounded)."""
+        (a lockstep that keeps no results: its memory stays bounded); `faults`: the scene's, of
+        which dust blinds a scanner (bwr_twin.sensing.faults)."""
+        self._faults = faults
         runs = len(seeds)
         self.scanners, self.surface, self.period = tuple(scanners), surface, period
         self.density = np.asarray(density, dtype=float)
@@ -97,6 +119,8 @@ class Scanning:
         self.scans, self.rays, self.hits, self.dropped = self._counts.T
         self._all = np.arange(runs)
         self.first_cut: list[dict | None] = [None] * runs  # the scanned pile when the run's wheel first cut
+        self.plan_start: list[dict | None] = [None] * runs  # ... as the benches were planned, after a survey
+        self._known_at_plan: list[KnownPile | None] = [None] * runs
 
     def step(self, k: int, q: np.ndarray, heights: np.ndarray, runs: np.ndarray | None) -> bool:
         """Scan with every scanner due at control period k, the runs' true joint values q (runs, 3)
@@ -113,8 +137,12 @@ class Scanning:
             log, mount = self.logs[i], scanner.mount
             normal, uniform = self._noise[i].at(log.count)
             origin, hits = log.next_scan(time)
+            settings = self._settings[i]
+            if self._faults is not None and self._faults.active and self._faults.scanner_blinded(k, scanner.name):
+                settings = settings.copy()
+                settings[3] = 1.0  # blinded by dust: every ray that meets the pile returns nothing
             _scan(heights, self._grid, order, q, mount.position, mount.rotation, mount.joints, mount.anchor,
-                  mount.axis, self._directions[i], self._settings[i], normal, uniform, origin, hits, self._counts)
+                  mount.axis, self._directions[i], settings, normal, uniform, origin, hits, self._counts)
             made.append(hits)
             self._due[i] = math.floor(time * scanner.rate + _DUE) + 1
             self._next[i] = math.ceil((self._due[i] / scanner.rate - _DUE) / self.period)
@@ -135,6 +163,15 @@ class Scanning:
             if self.first_cut[run] is None:
                 self.first_cut[run] = {"time_s": time, **self.survey.tonnes(run, heights[run], self.density[run])}
 
+    def note_plan_start(self, time: float, heights: np.ndarray) -> None:
+        """Keep every run's scanned pile, and its tonnes against the truth (heights (runs, ny, nx)
+        m), as the survey ends and the benches are planned, at `time` s."""
+        survey = self.survey
+        for run in range(len(self.plan_start)):
+            self.plan_start[run] = {"time_s": time, **survey.tonnes(run, heights[run], self.density[run])}
+            self._known_at_plan[run] = KnownPile(time, survey.z[run].copy(), survey.seen[run].copy(),
+                                                 survey.last_seen[run].copy())
+
     def metrics(self, run: int, heights: np.ndarray) -> dict:
         """metrics.json's `scan` object of `run`, whose pile now stands at heights (ny, nx) m."""
         rays = int(self.rays[run])
@@ -146,13 +183,15 @@ class Scanning:
             "dropped_share": int(self.dropped[run]) / met if (met := int(self.hits[run] + self.dropped[run])) else None,
             **self.survey.tonnes(run, heights, self.density[run]),
             "first_cut": self.first_cut[run],
+            "plan_start": self.plan_start[run],
         }
 
-    def record(self, run: int) -> ScanRecord:
-        """Run `run`'s scans and its scanned pile at the end."""
+    def record(self, run: int, time: float = math.nan) -> ScanRecord:
+        """Run `run`'s scans, and its scanned pile at the end, `time` s, and at the plan's start."""
         survey = self.survey
+        end = KnownPile(time, survey.z[run].copy(), survey.seen[run].copy(), survey.last_seen[run].copy())
         return ScanRecord.of(self.scanners, [log.share(run) for log in self.logs], self.surface.x, self.surface.y,
-                             survey.z[run].copy(), survey.seen[run].copy(), survey.last_seen[run].copy())
+                             end, self._known_at_plan[run])
 
 
 @numba.njit(cache=True)

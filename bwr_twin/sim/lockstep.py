@@ -23,14 +23,18 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
+from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
 from bwr_twin.errors import BwrError, SimulationError
 from bwr_twin.model.machine import AXES, Machine
-from bwr_twin.sensing.scanning import Scanning, active_scanners
+from bwr_twin.sensing.faults import Faults
+from bwr_twin.sensing.rate_instruments import rate_instruments
+from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
+from bwr_twin.sim.fault_report import fault_metrics
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
@@ -65,6 +69,7 @@ def lockstep_key(scene: Scene) -> tuple:
         sim.record_period,
         scene.stockpile,
         scene.sensing,
+        scene.faults,
     )
 
 
@@ -159,6 +164,8 @@ class Lockstep:
         reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
         scanning: the runs' scanners and the piles they know from them (bwr_twin.sensing), or
             None without a stockpile or a scanner.
+        instruments: the belt scale and wheel current a bench reclaim's rate control reads
+            (bwr_twin.sensing.rate_instruments), or None: it reads the true rate and power.
     """
 
     def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None,
@@ -179,21 +186,31 @@ class Lockstep:
         self.runs = runs = len(scenes)
         self.nthread = min(nthread or os.cpu_count() or 1, runs)
         self.period = period = sim.control_period
-        self.tracking = tracking = (BenchTracking(scenes, machine, period) if scene.reclaim is not None
-                                    else PathTracking(scene, machine, period))
+        scanners = active_scanners(scene, machine) if surface is not None else ()
+        if scene.reclaim is not None:
+            scanned = pile_model(scene, scanners) == "scanned"
+            self.instruments = rate_instruments(scene, machine, parameters.seed, period)
+            tracking = BenchTracking(scenes, machine, period, instruments=self.instruments,
+                                     known_pile=(lambda: self.scanning.survey.z[0]) if scanned else None)
+        else:
+            self.instruments = None
+            tracking = PathTracking(scene, machine, period)
+        self.tracking = tracking
         self.samples, self.time = tracking.samples, tracking.time
 
         self._plant = plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep,
                                     control_period=period, nthread=self.nthread)
         self._encoders = Encoders(parameters, period, tracking.start)
+        self._faults = faults = Faults(scene.faults, parameters.seed, period)
+        self._applied = np.zeros((runs, 3))  # the drive forces a tripped drive leaves of the command
         self._disturbances = Disturbances(parameters, period)
         self.reclaim = None
         if surface is not None:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
             self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
-        scanners = active_scanners(scene, machine) if surface is not None else ()
+        check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
         self.scanning = (Scanning(scanners, surface, parameters.seed, period, self.reclaim.density,
-                                  keep_scans=observe) if scanners else None)
+                                  keep_scans=observe, faults=faults) if scanners else None)
         self._observe = observe
         self._observer = observer = Observer(
             runs, self.samples, period, round(sim.record_period / period), machine,
@@ -254,6 +271,8 @@ class Lockstep:
         observer = self._observer
         row = observer.rows[observer.row]
         self._encoders.measure(row.q, row.qd, row.q_measured, row.qd_measured)
+        if self._faults.active:  # the controller sees what the faulty encoders show
+            self._faults.measured(self.k, row.q_measured, row.qd_measured)
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 
@@ -276,10 +295,17 @@ class Lockstep:
                 disturbance += load
             for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
                 rows[...] = value
+            if self.instruments is not None:
+                self.instruments.read(k, reclaim.rate, reclaim.power, self._faults.scale_frozen(k))
         gusts = self._disturbances.gusts
         if gusts.active:  # still air leaves the row's zeros
             row.gust[...] = gusts.sample(k)
-        plant.step(row.command, disturbance, row.gust)
+        applied = row.command
+        if self._faults.active:  # a tripped drive applies nothing, whatever it was commanded
+            applied = self._applied
+            applied[...] = row.command
+            self._faults.command(k, applied)
+        plant.step(applied, disturbance, row.gust)
         plant.read(row.q_next, row.qd_next, row.drive_force)
         if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's
             for rows, value in zip(row.reference, tracking.now()):
@@ -293,6 +319,12 @@ class Lockstep:
             self.samples = end
             self.time = self.time[:end]
             observer.end_at(end)
+        if k == tracking.survey_end:  # the survey has ended: the benches are planned from here
+            if tracking.samples > self.samples:  # on the pile the runs scanned, just now
+                self.samples, self.time = tracking.samples, tracking.time
+                observer.extend_to(self.samples)
+            if self.scanning is not None:
+                self.scanning.note_plan_start(k * self.period, reclaim.cutter.heights)
         if self._observe:
             observer.period_done()
         if k % HEALTH_CHECK_EVERY == 0:
@@ -359,7 +391,12 @@ class Lockstep:
             if self.reclaim is not None:
                 result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
             if self.scanning is not None:
-                result.scan = self.scanning.record(run)
+                result.scan = self.scanning.record(run, self.duration)
+            if scene.faults:
+                run_metrics["faults"] = fault_metrics(
+                    scene.faults, result.time, result.q_desired, result.q, run_metrics,
+                    result.reclaim.rate if result.reclaim is not None else None,
+                    scene.reclaim.target_rate if scene.reclaim is not None else None)
             results.append(result)
         return results
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from bwr_twin.model.machine import Machine
+from bwr_twin.signals import LOOP, RECLAIM, Signal
 from bwr_twin.sim.metrics import Metrics
 from bwr_twin.sim.record import Recorder
-from bwr_twin.signals import LOOP, RECLAIM, Signal
 
 BLOCK = 500  # control periods a block: 5 s at 100 Hz, a few MB for 128 runs
 
@@ -84,6 +84,10 @@ class Observer:
     def end_at(self, samples: int) -> None:
         """The runs end after `samples` periods, sooner than the record was sized for."""
         self.recorder.end_at(samples)
+
+    def extend_to(self, samples: int) -> None:
+        """The runs go on for `samples` periods in all, longer than the record was sized for."""
+        self.recorder.extend_to(samples)
 
     def _reference(self, start: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The block's reference: (n, 1, 3) rows of the shared path, or the runs' own (n, runs, 3)."""

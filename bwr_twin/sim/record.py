@@ -81,18 +81,40 @@ class Recorder:
 
     def __init__(self, samples: int, every: int, runs: int, controller_signals: tuple[Signal, ...] = (),
                  reclaim: bool = False):
-        kept = np.arange(0, samples, every)
-        if kept[-1] != samples - 1:
-            kept = np.append(kept, samples - 1)
-        self.samples = kept
-        self.row_of = np.full(samples, -1)  # the row that keeps each sample, or -1
-        self.row_of[kept] = np.arange(len(kept))
-        rows = len(kept)
+        self.every = every
+        self._keep(samples)
+        rows = len(self.samples)
         self.controller_schema = tuple(controller_signals)
         self.signals = {s.name: np.zeros((rows, runs, s.width)) for s in LOOP + self.controller_schema}
         self.wind_speed = np.zeros((rows, runs))
         self.reclaim = {name: np.zeros((rows, runs) + ((width,) if width > 1 else ()))
                         for name, _, width in RECLAIM} if reclaim else None
+
+    def _keep(self, samples: int) -> None:
+        """Which of `samples` control periods are kept: every `every`-th one, and the last."""
+        kept = np.arange(0, samples, self.every)
+        if kept[-1] != samples - 1:
+            kept = np.append(kept, samples - 1)
+        self.samples = kept
+        self.row_of = np.full(samples, -1)  # the row that keeps each sample, or -1
+        self.row_of[kept] = np.arange(len(kept))
+
+    def extend_to(self, samples: int) -> None:
+        """The runs go on for `samples` control periods in all, more than the record was sized
+        for; the rows kept so far stay (the old last sample, off the grid, is not yet recorded)."""
+        on_grid = int(np.count_nonzero(self.samples % self.every == 0))
+        self._keep(samples)
+        rows = len(self.samples)
+
+        def grown(values: np.ndarray) -> np.ndarray:
+            array = np.zeros((rows,) + values.shape[1:])
+            array[:on_grid] = values[:on_grid]
+            return array
+
+        self.signals = {name: grown(values) for name, values in self.signals.items()}
+        self.wind_speed = grown(self.wind_speed)
+        if self.reclaim is not None:
+            self.reclaim = {name: grown(values) for name, values in self.reclaim.items()}
 
     def end_at(self, samples: int) -> None:
         """The run ends after `samples` control periods, sooner than planned: its last sample is kept."""

@@ -11,7 +11,7 @@ move on a period (`advance`) and say where each run began each segment (`waypoin
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -20,9 +20,10 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.control.rate import RateSignals, WheelCalibration
 from bwr_twin.errors import EnvelopeError, PluginError, UnreachableError
 from bwr_twin.model.machine import Machine
-from bwr_twin.planning.bench import plan_scene
+from bwr_twin.planning.bench import plan_after_survey, plan_scene, survey_plan
 from bwr_twin.planning.follower import BenchReference, PathReference, Phase
 from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.outcome import PlanOutcome
 from bwr_twin.sim.plugins import call, checked, construct, describe
 
@@ -38,6 +39,7 @@ class PathTracking:
 
     shared = True
     plan = None
+    survey_end = None
 
     def __init__(self, scene: Scene, machine: Machine, period: float):
         """Raises UnreachableError or EnvelopeError, naming the scene, for a path the machine cannot follow."""
@@ -90,10 +92,20 @@ class BenchTracking:
     shared = False
     external_trim: float | None = None
 
-    def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float):
-        """Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
+    def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float, *,
+                 known_pile: Callable[[], np.ndarray] | None = None, instruments: RateInstruments | None = None):
+        """`known_pile()`, if given, is the pile the runs know from their scans, (ny, nx) m: the
+        benches are planned on it as the [reclaim.survey] ends, not on the true pile in advance.
+        Runs of one lockstep share their scene and seed, so their scans and plans are the same.
+        `instruments`, if given, are what the rate control reads instead of the true rate and
+        power. Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
         scene = scenes[0]
-        self.plan = plan_scene(scene)
+        self._scene, self._machine, self._known_pile, self.instruments = scene, machine, known_pile, instruments
+        survey = survey_plan(scene)
+        # The control period at which the survey ends and the benches begin; None without a survey.
+        self.survey_end = None if survey is None else round(survey.nominal_duration / period)
+        self.surveying = known_pile is not None and survey is not None  # the benches are still to plan
+        self.plan = survey if self.surveying else plan_scene(scene)
         self._reference = reference = BenchReference(self.plan, len(scenes), period, machine.fk)
         self.samples, self.time, self.start = reference.samples, reference.time, reference.start
         self._period = period
@@ -110,6 +122,7 @@ class BenchTracking:
         cls = rate_control_class(control.type)
         self._label = f"{scene.path}: rate control {describe(control.type, cls)}"  # an engineer's failures are theirs
         self._rate_control = construct(self._label, cls, control, targets, period, wheel)
+        self._targets = targets
         self.outcome = PlanOutcome(self.plan, targets, machine.wheel.bucket_interval, period)
 
     def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,11 +136,18 @@ class BenchTracking:
         """On to period k from the period just ended, where the runs stood at `phase`: the rate
         control's trims from what each run's reclaim measured in it, the stop condition; once
         every run rests, the periods the lockstep takes in all (one more at rest, measured and
-        recorded), else None."""
+        recorded), else None. As a survey on the scanned pile ends, the benches are planned and
+        `samples` grows to the most they may take."""
         reference = self._reference
-        self.outcome.add(k - 1, phase, reclaim)
+        if not self.surveying:
+            self.outcome.add(k - 1, phase, reclaim)
         time = (k - 1) * self._period
-        signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
+        instruments = self.instruments
+        if instruments is None:
+            signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
+        else:
+            signals = RateSignals(instruments.belt_scale.copy(), instruments.wheel_power.copy(), phase.cutting,
+                                  phase.steady, instruments.wheel_current.copy())
         if self.external_trim is not None:
             trim = np.full(len(signals.belt_rate), np.clip(self.external_trim, *self._trim_limits))
         else:
@@ -141,7 +161,20 @@ class BenchTracking:
         elif stop.tonnes is not None:
             stopping = reclaim.carried_tonnes() >= stop.tonnes
         reference.advance(trim, stopping)
-        return k + 1 if reference.finished.all() else None
+        if not reference.finished.all():
+            return None
+        if self.surveying:
+            self._plan_benches()
+            return None
+        return k + 1
+
+    def _plan_benches(self) -> None:
+        """The survey has ended: the benches planned on the pile the runs know, followed from here."""
+        self.surveying = False
+        self.plan = plan_after_survey(self._scene, self._machine, self._known_pile())
+        self._reference.continue_with(self.plan)
+        self.samples, self.time = self._reference.samples, self._reference.time
+        self.outcome = PlanOutcome(self.plan, self._targets, self._machine.wheel.bucket_interval, self._period)
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)

@@ -1,0 +1,110 @@
+"""The belt scale and the wheel motor's current of every run of a lockstep, as the rate loop reads
+them (docs/sensing.md).
+
+The belt scale weighs what the wheel discharged the belt's transport delay later (its distance
+from the discharge over the belt's speed, a whole number of control periods, rounded), with
+Gaussian noise of sigma = a + b x rate, through a first-order filter. The wheel's current is the
+drive's shaft power as a three-phase motor draws it, I = P / (sqrt(3) V cos(phi) eta), with noise
+of its own; the power the drive reports is that current turned back into watts. A frozen scale
+(a fault) holds its last reading.
+
+Each run draws from its own streams, children 4 (the scale) and 5 (the current) of its seed's
+SeedSequence (0-2: disturbances, gusts, scanners; 3: faults), a normal a period for each, drawn a
+block at a time: a run's readings depend on its seed alone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import SceneError
+from bwr_twin.sensing.instruments import BeltScaleSpec, WheelMotorSpec
+
+if TYPE_CHECKING:
+    from bwr_twin.model.machine import Machine
+
+SCALE_STREAM, CURRENT_STREAM = 4, 5
+BLOCK = 1000  # control periods drawn at once
+
+
+class NormalStream:
+    """A standard normal a control period for every run, from each run's own stream: `at(k)` is
+    period k's (runs,); periods must be asked for in increasing order."""
+
+    def __init__(self, seeds: Sequence[int], stream: int):
+        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(stream,)))
+                            for seed in seeds]
+        self._block = np.empty((len(seeds), BLOCK))
+        self._start = None
+
+    def at(self, k: int) -> np.ndarray:
+        start = k - k % BLOCK
+        while self._start is None or self._start < start:  # every block drawn, so the streams stay in step
+            for run, generator in enumerate(self._generators):
+                generator.standard_normal(out=self._block[run])
+            self._start = 0 if self._start is None else self._start + BLOCK
+        return self._block[:, k - start]
+
+
+def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], period: float) -> RateInstruments | None:
+    """The instruments a bench reclaim's rate control reads ([sensing] rate_signals; by default
+    "measured" when the machine describes them), or None: the true rate and power. SceneError
+    if the rate control's signal has no instrument."""
+    if scene.reclaim is None:
+        return None
+    wanted = scene.sensing.rate_signals
+    scale, motor = machine.belt_scale, machine.wheel_motor
+    if wanted == "exact" or (wanted is None and scale is None and motor is None):
+        return None
+    control = scene.reclaim.rate_control.type
+    needs = {"belt_scale": ("a belt scale", scale, "belt_scale_distance"),
+             "wheel_power": ("a wheel motor", motor, "wheel_motor")}.get(control)
+    if needs is not None and needs[1] is None:
+        what, _, key = needs
+        raise SceneError(f"{scene.path}: 'reclaim.rate_control.type' \"{control}\" reads {what}, but "
+                         f"{machine.path.name} describes none (custom numeric '{key}', docs/sensing.md); "
+                         "set 'sensing.rate_signals' = \"exact\" to read the true signal")
+    return RateInstruments(scale, motor, seeds, period)
+
+
+class RateInstruments:
+    """(runs,) readings of this control period: `belt_scale` t/h, `wheel_current` A and the
+    `wheel_power` W the drive reports from it. Either instrument may be absent (None): its
+    readings are then NaN."""
+
+    def __init__(self, scale: BeltScaleSpec | None, motor: WheelMotorSpec | None, seeds: Sequence[int],
+                 period: float):
+        runs = len(seeds)
+        self.scale, self.motor, self.period = scale, motor, period
+        self.belt_scale = np.full(runs, np.nan)
+        self.wheel_current = np.full(runs, np.nan)
+        self.wheel_power = np.full(runs, np.nan)
+        if scale is not None:
+            self.delay_periods = round(scale.delay / period)
+            self._belt = np.zeros((self.delay_periods + 1, runs))  # the true rates of the periods in transit
+            self._smoothing = period / (scale.filter_time + period)
+            self._scale_noise = NormalStream(seeds, SCALE_STREAM)
+            self.belt_scale[:] = 0.0
+        if motor is not None:
+            self._current_noise = NormalStream(seeds, CURRENT_STREAM)
+
+    def read(self, k: int, rate: np.ndarray, power: np.ndarray, scale_frozen: bool = False) -> None:
+        """Period k's readings of the true belt rate at the discharge (t/h) and the wheel's shaft power (W)."""
+        scale = self.scale
+        if scale is not None:
+            slot = k % len(self._belt)
+            self._belt[slot] = rate
+            weighed = self._belt[(k - self.delay_periods) % len(self._belt)] if k >= self.delay_periods else 0.0
+            reading = weighed + self._scale_noise.at(k) * (scale.noise[0] + scale.noise[1] * np.abs(weighed))
+            if not scale_frozen:
+                self.belt_scale += (reading - self.belt_scale) * self._smoothing
+        motor = self.motor
+        if motor is not None:
+            current = power * motor.amps_per_watt
+            self.wheel_current[:] = current + self._current_noise.at(k) * (motor.noise[0] + motor.noise[1]
+                                                                            * np.abs(current))
+            self.wheel_power[:] = self.wheel_current / motor.amps_per_watt
