@@ -58,6 +58,8 @@ RECLAIM = (
     ("cut_depth", "cut_depth_m", 1),
     ("wheel_power", "wheel_power_W", 1),
     ("digging_force", "digging_force_{xyz}_N", 3),
+    ("belt_scale", "belt_scale_t/h", 1),  # as the machine's instruments read them, NaN without instruments
+    ("wheel_current", "wheel_current_A", 1),
 )
 # Columns every run has beyond its signals: time, the CP desired and actual, the wind.
 OTHER_COLUMNS = 1 + 6 + 1

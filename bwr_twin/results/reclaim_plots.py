@@ -58,6 +58,8 @@ def _rate_figure(result: RunResult, subtitle: str) -> Figure:
     fig = Figure(figsize=(10, 9), layout="constrained")
     rate, depth, power, force = fig.subplots(4, 1, sharex=True)
     rate.plot(result.time, r.rate, "C0-", lw=0.8, label="reclaim rate")
+    if np.isfinite(r.belt_scale).any():  # the machine's belt scale, late and noisy
+        rate.plot(result.time, r.belt_scale, "C4-", lw=0.6, alpha=0.8, label="belt scale")
     rate.axhline(m["wheel_capacity_tph"], color="C3", ls="--", lw=1.0, label="bucket capacity")
     title = (f"{m['mass_t']:.0f} t reclaimed, {m['spill_t']:.1f} t spilled; "
              f"mean {m['rate_mean_tph']:.0f} t/h while carrying, "
@@ -77,6 +79,11 @@ def _rate_figure(result: RunResult, subtitle: str) -> Figure:
     depth.set_ylabel("cut depth [m]")
     power.plot(result.time, r.wheel_power / 1e3, "C2-", lw=0.8, label="wheel power")
     power.set_ylabel("wheel power [kW]")
+    if np.isfinite(r.wheel_current).any():  # the wheel motor's current, as its drive measures it
+        current = power.twinx()
+        current.plot(result.time, r.wheel_current, "C5-", lw=0.5, alpha=0.6, label="wheel current")
+        current.set_ylabel("wheel current [A]")
+        power.legend(handles=power.get_lines() + current.get_lines(), loc="upper right")
     for label, component, style in (("X", 0, "C0-"), ("Y", 1, "C1-"), ("Z", 2, "C2-")):
         force.plot(result.time, r.digging_force[:, component] / 1e3, style, lw=0.8, label=label)
     force.set_ylabel("digging load [kN]")

@@ -107,6 +107,8 @@ class Faults:
     def __init__(self, faults: tuple[FaultSection, ...], seeds: Sequence[int], period: float):
         """`seeds` each run's seed, `period` the control period in s."""
         self.active = bool(faults)
+        self.faults = tuple(faults)
+        self._windows = [fault_periods(f, period) for f in faults]
         self._period = period
         self._runs = len(seeds)
         self._encoder = [_EncoderFault(f, i, period, seeds) for i, f in enumerate(faults) if f.kind in _ENCODER_KINDS]
@@ -143,6 +145,10 @@ class Faults:
     def scanner_blinded(self, k: int, name: str) -> bool:
         """Whether dust blinds scanner `name` in period k: its rays return nothing."""
         return any(first <= k <= last and scanner in (None, name) for scanner, first, last in self._blinded)
+
+    def acting(self, k: int) -> list[bool]:
+        """Whether each fault, in the scene's order, acts in period k: its state, as a SCADA shows it."""
+        return [first <= k <= last for first, last in self._windows]
 
     def scale_frozen(self, k: int) -> bool:
         """Whether the belt scale's reading is frozen in period k."""

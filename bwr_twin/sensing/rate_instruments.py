@@ -51,15 +51,21 @@ class NormalStream:
 
 
 def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], period: float) -> RateInstruments | None:
-    """The instruments a bench reclaim's rate control reads ([sensing] rate_signals; by default
-    "measured" when the machine describes them), or None: the true rate and power. SceneError
-    if the rate control's signal has no instrument."""
-    if scene.reclaim is None:
+    """The belt scale and wheel current of a scene's runs: with a stockpile and a machine whose
+    MJCF describes either; else None."""
+    if scene.stockpile is None or (machine.belt_scale is None and machine.wheel_motor is None):
         return None
+    return RateInstruments(machine.belt_scale, machine.wheel_motor, seeds, period)
+
+
+def rate_loop_reads_instruments(scene: Scene, machine: Machine) -> bool:
+    """Whether a bench reclaim's rate control reads the instruments ([sensing] rate_signals;
+    by default "measured" when the machine describes them) rather than the true rate and power.
+    SceneError if the rate control's signal has no instrument."""
     wanted = scene.sensing.rate_signals
     scale, motor = machine.belt_scale, machine.wheel_motor
-    if wanted == "exact" or (wanted is None and scale is None and motor is None):
-        return None
+    if scene.reclaim is None or wanted == "exact" or (wanted is None and scale is None and motor is None):
+        return False
     control = scene.reclaim.rate_control.type
     needs = {"belt_scale": ("a belt scale", scale, "belt_scale_distance"),
              "wheel_power": ("a wheel motor", motor, "wheel_motor")}.get(control)
@@ -68,7 +74,7 @@ def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], perio
         raise SceneError(f"{scene.path}: 'reclaim.rate_control.type' \"{control}\" reads {what}, but "
                          f"{machine.path.name} describes none (custom numeric '{key}', docs/sensing.md); "
                          "set 'sensing.rate_signals' = \"exact\" to read the true signal")
-    return RateInstruments(scale, motor, seeds, period)
+    return True
 
 
 class RateInstruments:

@@ -30,7 +30,7 @@ from bwr_twin.control.interface import Controller, ControllerContext, shared_set
 from bwr_twin.errors import BwrError, SimulationError
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.sensing.faults import Faults
-from bwr_twin.sensing.rate_instruments import rate_instruments
+from bwr_twin.sensing.rate_instruments import rate_instruments, rate_loop_reads_instruments
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
@@ -164,8 +164,11 @@ class Lockstep:
         reclaim: the piles being dug and their accounting, or None if the scene has no stockpile.
         scanning: the runs' scanners and the piles they know from them (bwr_twin.sensing), or
             None without a stockpile or a scanner.
-        instruments: the belt scale and wheel current a bench reclaim's rate control reads
-            (bwr_twin.sensing.rate_instruments), or None: it reads the true rate and power.
+        instruments: the runs' belt scale and wheel current (bwr_twin.sensing.rate_instruments),
+            read every period and recorded, or None without a stockpile or instruments; a bench
+            reclaim's rate control reads them unless [sensing] rate_signals is "exact".
+        faults: the scene's scheduled faults (bwr_twin.sensing.faults); `faults.acting(k)` says
+            which act in period k.
     """
 
     def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None,
@@ -187,13 +190,13 @@ class Lockstep:
         self.nthread = min(nthread or os.cpu_count() or 1, runs)
         self.period = period = sim.control_period
         scanners = active_scanners(scene, machine) if surface is not None else ()
+        self.instruments = rate_instruments(scene, machine, parameters.seed, period)
         if scene.reclaim is not None:
             scanned = pile_model(scene, scanners) == "scanned"
-            self.instruments = rate_instruments(scene, machine, parameters.seed, period)
-            tracking = BenchTracking(scenes, machine, period, instruments=self.instruments,
+            measured = rate_loop_reads_instruments(scene, machine)
+            tracking = BenchTracking(scenes, machine, period, instruments=self.instruments if measured else None,
                                      known_pile=(lambda: self.scanning.survey.z[0]) if scanned else None)
         else:
-            self.instruments = None
             tracking = PathTracking(scene, machine, period)
         self.tracking = tracking
         self.samples, self.time = tracking.samples, tracking.time
@@ -201,7 +204,7 @@ class Lockstep:
         self._plant = plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep,
                                     control_period=period, nthread=self.nthread)
         self._encoders = Encoders(parameters, period, tracking.start)
-        self._faults = faults = Faults(scene.faults, parameters.seed, period)
+        self.faults = faults = Faults(scene.faults, parameters.seed, period)
         self._applied = np.zeros((runs, 3))  # the drive forces a tripped drive leaves of the command
         self._disturbances = Disturbances(parameters, period)
         self.reclaim = None
@@ -209,6 +212,9 @@ class Lockstep:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
             self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
         check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
+        nan = np.full(runs, np.nan)  # the readings of a machine without instruments
+        self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
+                                     if self.instruments is not None else (nan, nan))
         self.scanning = (Scanning(scanners, surface, parameters.seed, period, self.reclaim.density,
                                   keep_scans=observe, faults=faults) if scanners else None)
         self._observe = observe
@@ -271,8 +277,8 @@ class Lockstep:
         observer = self._observer
         row = observer.rows[observer.row]
         self._encoders.measure(row.q, row.qd, row.q_measured, row.qd_measured)
-        if self._faults.active:  # the controller sees what the faulty encoders show
-            self._faults.measured(self.k, row.q_measured, row.qd_measured)
+        if self.faults.active:  # the controller sees what the faulty encoders show
+            self.faults.measured(self.k, row.q_measured, row.qd_measured)
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 
@@ -293,18 +299,20 @@ class Lockstep:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
                 disturbance += load
-            for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force)):
+            instruments = self.instruments
+            if instruments is not None:
+                instruments.read(k, reclaim.rate, reclaim.power, self.faults.active and self.faults.scale_frozen(k))
+            for rows, value in zip(row.reclaim, (reclaim.rate, reclaim.depth, reclaim.power, reclaim.force,
+                                                 *self._instrument_readings)):
                 rows[...] = value
-            if self.instruments is not None:
-                self.instruments.read(k, reclaim.rate, reclaim.power, self._faults.scale_frozen(k))
         gusts = self._disturbances.gusts
         if gusts.active:  # still air leaves the row's zeros
             row.gust[...] = gusts.sample(k)
         applied = row.command
-        if self._faults.active:  # a tripped drive applies nothing, whatever it was commanded
+        if self.faults.active:  # a tripped drive applies nothing, whatever it was commanded
             applied = self._applied
             applied[...] = row.command
-            self._faults.command(k, applied)
+            self.faults.command(k, applied)
         plant.step(applied, disturbance, row.gust)
         plant.read(row.q_next, row.qd_next, row.drive_force)
         if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's

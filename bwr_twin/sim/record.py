@@ -25,6 +25,8 @@ class ReclaimRecord:
     cut_depth: np.ndarray  # (n,) m
     digging_force: np.ndarray  # (n, 3) N on the wheel, world frame
     wheel_power: np.ndarray  # (n,) W
+    belt_scale: np.ndarray  # (n,) t/h as the belt scale reads it, NaN without one (bwr_twin.sensing.rate_instruments)
+    wheel_current: np.ndarray  # (n,) A of the wheel motor as its drive measures it, NaN without one
     x: np.ndarray  # grid lines, m
     y: np.ndarray
     z_start: np.ndarray  # (ny, nx) m
