@@ -23,39 +23,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
-import numba
 import numpy as np
 
 from bwr_twin.errors import ModelError
+from bwr_twin.model.mount import Mount, mount_of
 
 SITE_PREFIX = "scanner"
 # At most this many rays a scan: a whole circle at 0.1 deg, finer than any 2D profile scanner's
 # step (the SICK LMS5xx's finest is 0.1667 deg over 190 deg, 1,141 rays); more is a typo in a step.
 MAX_RAYS = 3600
 _WHOLE_STEPS = 1e-6  # how near a whole number the fan's steps must come (rounding of radians)
-
-
-@dataclass(frozen=True, eq=False)
-class Mount:
-    """Where a site sits on the machine: its pose at q = 0 and the joints that move it.
-
-    `position` (3,) world m and `rotation` (3, 3) (columns: the site's axes in world) at q = 0;
-    the first `joints` of travel, slew, luff move it (the chain is serial), each about its
-    `anchor` (3, 3) world m along its `axis` (3, 3), both at q = 0.
-    """
-
-    position: np.ndarray
-    rotation: np.ndarray
-    joints: int
-    anchor: np.ndarray
-    axis: np.ndarray
-
-    def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The site's world positions (runs, 3) and rotations (runs, 3, 3) for joints q (runs, 3)."""
-        q = np.ascontiguousarray(q, dtype=float).reshape(-1, 3)
-        position, rotation = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
-        site_poses(q, self.position, self.rotation, self.joints, self.anchor, self.axis, position, rotation)
-        return position, rotation
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,56 +119,5 @@ def _scanner(model: mujoco.MjModel, data: mujoco.MjData, path: Path, name: str, 
     if not 0 <= dropout < 1:
         raise refuse("dropout", "must lie in [0, 1)", dropout)
     return Scanner(name, site, (float(start), float(end)), float(step), float(rate), float(max_range),
-                   (float(constant), float(share)), float(dropout), _mount(model, data, site))
-
-
-def _mount(model: mujoco.MjModel, data: mujoco.MjData, site: int) -> Mount:
-    """The site's pose at q = 0 and the joints (the model contract's serial chain) that move it."""
-    ancestors, body = set(), int(model.site_bodyid[site])
-    while body > 0:
-        ancestors.add(body)
-        body = int(model.body_parentid[body])
-    joints = sum(int(model.jnt_bodyid[j]) in ancestors for j in range(model.njnt))
-    return Mount(position=data.site_xpos[site].copy(), rotation=data.site_xmat[site].reshape(3, 3).copy(),
-                 joints=joints, anchor=data.xanchor[:3].copy(), axis=data.xaxis[:3].copy())
-
-
-@numba.njit(cache=True)
-def site_poses(q, position0, rotation0, joints, anchor, axis, position, rotation):  # pragma: no cover - compiled
-    """A site's world positions (runs, 3) and rotations (runs, 3, 3) for each run's joints q (runs, 3)."""
-    for run in range(q.shape[0]):
-        site_pose(q[run], position0, rotation0, joints, anchor, axis, position[run], rotation[run])
-
-
-@numba.njit(cache=True)
-def site_pose(q, position0, rotation0, joints, anchor, axis, position, rotation):  # pragma: no cover - compiled
-    """A site's world pose for joints q (3,): its pose at q = 0 moved by the luff about its pivot,
-    then the slew about its axis, then the travel along the rail (the serial chain's joints in
-    world at q = 0, innermost first), for the first `joints` of them; into position (3,) and
-    rotation (3, 3)."""
-    position[:] = position0
-    rotation[:] = rotation0
-    turn = np.empty((3, 3))
-    for j in range(joints - 1, -1, -1):
-        k = axis[j]
-        if j == 0:  # travel: a slide along its axis
-            for a in range(3):
-                position[a] += q[0] * k[a]
-            continue
-        c, s = math.cos(q[j]), math.sin(q[j])
-        for a in range(3):  # Rodrigues: I cos + sin [k]x + (1 - cos) k k'
-            for b in range(3):
-                turn[a, b] = (1.0 - c) * k[a] * k[b] + (c if a == b else 0.0)
-        turn[0, 1] -= s * k[2]
-        turn[0, 2] += s * k[1]
-        turn[1, 0] += s * k[2]
-        turn[1, 2] -= s * k[0]
-        turn[2, 0] -= s * k[1]
-        turn[2, 1] += s * k[0]
-        arm = position - anchor[j]
-        for a in range(3):
-            position[a] = anchor[j, a] + turn[a, 0] * arm[0] + turn[a, 1] * arm[1] + turn[a, 2] * arm[2]
-        for col in range(3):
-            r0, r1, r2 = rotation[0, col], rotation[1, col], rotation[2, col]
-            for a in range(3):
-                rotation[a, col] = turn[a, 0] * r0 + turn[a, 1] * r1 + turn[a, 2] * r2
+                   (float(constant), float(share)), float(dropout), mount_of(model, data, int(model.site_bodyid[site]), data.site_xpos[site],
+                                                                     data.site_xmat[site]))

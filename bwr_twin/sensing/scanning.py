@@ -22,12 +22,13 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError, SceneError
 from bwr_twin.model.machine import Machine
+from bwr_twin.model.mount import site_pose
 from bwr_twin.model.spec import compile_model
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.noise import ScanNoise
 from bwr_twin.sensing.outputs import KnownPile, ScanLog, ScanRecord
 from bwr_twin.sensing.raycast import grid_of, ray_distance
-from bwr_twin.sensing.scanner import Scanner, read_scanners, site_pose
+from bwr_twin.sensing.scanner import Scanner, read_scanners
 from bwr_twin.sensing.survey import Survey
 from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 from bwr_twin.textfile import version
@@ -198,7 +199,7 @@ class Scanning:
 def _scan(heights, grid, runs, q, position0, rotation0, joints, anchor, axis, directions, settings, normal, uniform,
           origin, hits, counts):  # pragma: no cover - compiled
     """One scan of one scanner for each of `runs` at their joints q (runs, 3): the site's pose
-    (scanner.site_pose of its mount), the rays, noise and dropouts on their ranges. Writes
+    (bwr_twin.model.mount.site_pose of its mount), the rays, noise and dropouts on their ranges. Writes
     origin (runs, 3) and hits (runs, rays, 3) world m, NaN where missed or dropped, and adds to
     counts (runs, 4): scans, rays, hits, dropped.
 
