@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
+from bwr_twin.collision.shapes import read_collision_shapes
 from bwr_twin.model.dynamics import ChainDynamics
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
 from bwr_twin.sensing.instruments import read_instruments
@@ -135,6 +136,8 @@ class Machine:
             `<custom>` numerics (bwr_twin.sensing.scanner); () if it has none.
         belt_scale, wheel_motor: the rate instruments its `<custom>` numerics describe
             (bwr_twin.sensing.instruments), each None if it has none.
+        collision_shapes: its collision geoms (group 5, `collision_<part>`,
+            bwr_twin.collision.shapes); () if it has none.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
@@ -168,6 +171,7 @@ class Machine:
         self.name = self.model.names[:self.model.names.index(b"\0")].decode()
         self.scanners: tuple[Scanner, ...] = read_scanners(self.model, self.path)
         self.belt_scale, self.wheel_motor = read_instruments(self.model, self.path)
+        self.collision_shapes = read_collision_shapes(self.model, self.path, int(self.model.site_bodyid[self.cp_site]))
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).

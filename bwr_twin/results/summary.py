@@ -37,6 +37,10 @@ def summary_table(metrics: dict) -> str:
     scan = metrics.get("scan")
     if scan is not None and scan.get("plan_start") is not None:
         lines.append(scan_line("the benches planned on the scanned pile", scan["plan_start"]))
+    collision = metrics.get("collision")
+    if collision is not None:
+        lines.append(clearance_line(collision))
+        lines += [f"warning: {contact_line(contact)}" for contact in collision["contacts"]]
     for fault in metrics.get("faults", ()):
         lines.append(fault_line(fault))
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
@@ -48,6 +52,23 @@ def scan_line(when: str, known: dict) -> str:
     return (f"{when} at {known['time_s']:.1f} s: {known['scanned_t']:,.0f} t scanned against {known['true_t']:,.0f} t "
             f"true over the cells seen ({100 * known['error_share']:+.2f} %), "
             f"{100 * known['footprint_seen_share']:.0f} % of the pile's footprint seen")
+
+
+def clearance_line(collision: dict) -> str:
+    """The least clearance of each collision shape to the pile (bwr_twin.collision.monitor)."""
+    watch = collision["watch_m"]
+    parts = [f"{part} {'>= ' if least['clearance_m'] >= watch else ''}{least['clearance_m']:.2f} m"
+             + (f" @ {least['time_s']:.1f} s" if least["clearance_m"] < watch else "")
+             for part, least in collision["pile"].items()]
+    return "least clearance to the pile: " + ", ".join(parts)
+
+
+def contact_line(contact: dict) -> str:
+    """A collision: which bodies, when, how deep."""
+    until = "the run's end" if contact["end_s"] is None else f"{contact['end_s']:.1f} s"
+    first, second = contact["bodies"]
+    return (f"collision: the {first} met the {second} at {contact['time_s']:.1f} s, {contact['depth_m']:.2f} m deep "
+            f"at {contact['depth_time_s']:.1f} s, until {until}")
 
 
 def fault_line(fault: dict) -> str:

@@ -23,6 +23,7 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
+from bwr_twin.collision.monitor import PileClearance
 from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
@@ -167,6 +168,8 @@ class Lockstep:
         instruments: the runs' belt scale and wheel current (bwr_twin.sensing.rate_instruments),
             read every period and recorded, or None without a stockpile or instruments; a bench
             reclaim's rate control reads them unless [sensing] rate_signals is "exact".
+        collision: the machine's collision shapes against the runs' piles
+            (bwr_twin.collision.monitor), or None without a pile or shapes.
         faults: the scene's scheduled faults (bwr_twin.sensing.faults); `faults.acting(k)` says
             which act in period k.
     """
@@ -212,6 +215,8 @@ class Lockstep:
             frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
             self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
         check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
+        self.collision = (PileClearance(machine.collision_shapes, surface, runs, period)
+                          if surface is not None and machine.collision_shapes else None)
         nan = np.full(runs, np.nan)  # the readings of a machine without instruments
         self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
                                      if self.instruments is not None else (nan, nan))
@@ -295,6 +300,8 @@ class Lockstep:
         reclaim = self.reclaim
         if self.scanning is not None:  # the pile as dug until this period, seen from where the machine stands
             self._scan(k, row.q)
+        if self.collision is not None:  # ... and the machine's clearance to it
+            self.collision.step(k, row.q, row.qd, reclaim.cutter.heights, plant.alive)
         if reclaim is not None:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
@@ -383,6 +390,8 @@ class Lockstep:
                                           **self.tracking.reclaim_metrics(run, float(self.reclaim.density[run]))}
             if self.scanning is not None:
                 run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
+            if self.collision is not None:
+                run_metrics["collision"] = self.collision.metrics(run)
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),

@@ -1,0 +1,127 @@
+"""Collision shapes and their clearance to the pile: against MuJoCo's own distance on the same
+surface, a boom lowered into the pile reported with its time, and scenes without shapes unchanged."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import HEAVY_MJCF, SCENES
+
+from bwr_twin import ModelError
+from bwr_twin.collision.pile import clearances
+from bwr_twin.collision.shapes import BOX, CAPSULE
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import Machine
+from bwr_twin.sim.lockstep import simulate
+
+SPACING = 0.5
+
+
+def _rough_pile(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    x, y = np.arange(0.0, 6.01, SPACING), np.arange(0.0, 5.01, SPACING)
+    X, Y = np.meshgrid(x, y)
+    z = 2.0 - 0.08 * ((X - 3) ** 2 + (Y - 2.5) ** 2) + rng.uniform(0, 0.3, X.shape)
+    return x, y, np.maximum(z, 0.0)
+
+
+def _mujoco_distance(x, y, z, kind, half, position, rotation) -> float:
+    """MuJoCo's mj_geomDistance from the shape to the surface's triangles, each a prism 1 m deep
+    (the hfield's split of each cell along its diagonal), the least over them."""
+    spec = mujoco.MjSpec()
+    triangles = []
+    for r in range(len(y) - 1):
+        for c in range(len(x) - 1):
+            corners = {(i, j): (x[c + i], y[r + j], z[r + j, c + i]) for i in (0, 1) for j in (0, 1)}
+            triangles += [(corners[0, 0], corners[1, 1], corners[1, 0]), (corners[0, 0], corners[1, 1], corners[0, 1])]
+    for n, triangle in enumerate(triangles):
+        top = np.array(triangle)
+        vertices = np.vstack([top, top - [0, 0, 1.0]])
+        spec.add_mesh(name=f"t{n}", uservert=vertices.ravel().tolist())
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"t{n}", contype=0, conaffinity=0)
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, rotation.ravel())
+    size = list(half) if kind == BOX else [half[0], half[2], 0.0]
+    geom_type = mujoco.mjtGeom.mjGEOM_BOX if kind == BOX else mujoco.mjtGeom.mjGEOM_CAPSULE
+    spec.worldbody.add_geom(type=geom_type, size=size, pos=list(position), quat=list(quat), contype=0, conaffinity=0)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    shape, fromto = model.ngeom - 1, np.zeros(6)
+    return min(mujoco.mj_geomDistance(model, data, shape, g, 50.0, fromto) for g in range(model.ngeom - 1))
+
+
+@pytest.mark.parametrize("kind", [BOX, CAPSULE], ids=["box", "capsule"])
+def test_the_clearance_to_the_pile_is_mujoco_s_distance_to_its_surface_within_the_vertex_bound(kind):
+    """The clearance is the least distance to the surface's vertices: never below MuJoCo's distance
+    to the triangles between them, and above it by at most s^2 / (4 d)."""
+    rng = np.random.default_rng(5)
+    x, y, z = _rough_pile(rng)
+    for _ in range(12):
+        half = np.array([0.8, 0.4, 0.3]) if kind == BOX else np.array([0.3, 0.0, 1.0])
+        rotation, quat = np.empty(9), rng.normal(size=4)
+        mujoco.mju_quat2Mat(rotation, quat / np.linalg.norm(quat))
+        rotation = rotation.reshape(3, 3)
+        position = np.array([rng.uniform(1.5, 4.5), rng.uniform(1.5, 3.5), rng.uniform(4.0, 5.5)])
+        ours = clearances(z, x, y, np.array([kind]), half[None], position[None], rotation[None], 10.0)[0]
+        theirs = _mujoco_distance(x, y, z, kind, half, position, rotation)
+        assert theirs > 0.3  # above the surface: what the bound is for
+        assert theirs - 1e-6 <= ours <= theirs + SPACING**2 / (4 * theirs) + 1e-6, (ours, theirs)
+
+
+def test_a_shape_below_the_surface_has_minus_its_depth():
+    x, y = np.arange(0.0, 10.01, 0.25), np.arange(0.0, 10.01, 0.25)
+    z = np.full((len(y), len(x)), 3.0)
+    box = np.array([2.0, 0.5, 0.5])
+    for centre, expected in ((2.0, -1.5), (3.6, 0.1), (8.0, 4.5)):  # underside at 1.5, 3.1, 7.5 m
+        got = clearances(z, x, y, np.array([BOX]), box[None], np.array([[5.0, 5.0, centre]]), np.eye(3)[None], 10.0)
+        assert got[0] == pytest.approx(expected, abs=1e-9)
+    far = clearances(z, x, y, np.array([BOX]), box[None], np.array([[5.0, 5.0, 30.0]]), np.eye(3)[None], 10.0)
+    assert far[0] == 10.0  # beyond the watch
+
+
+def test_the_heavy_machine_declares_its_shapes_and_a_bad_one_is_refused(tmp_path):
+    machine = Machine(HEAVY_MJCF)
+    parts = {s.part: s for s in machine.collision_shapes}
+    assert set(parts) == {"portal", "tail", "boom", "counterweight", "wheel"}
+    assert parts["wheel"].cuts and not parts["boom"].cuts
+    assert [s.mount.joints for s in machine.collision_shapes] == [1, 2, 3, 3, 3]
+    touching = tmp_path / "touching.xml"
+    touching.write_text(HEAVY_MJCF.read_text().replace(
+        '<geom name="collision_boom" class="collision"', '<geom name="collision_boom" class="collision" contype="1"'))
+    with pytest.raises(ModelError, match=r"collision geom 'collision_boom' \(group 5\) must have contype=\"0\" "
+                                         r"conaffinity=\"0\""):
+        Machine(touching)
+
+
+@pytest.fixture(scope="module")
+def boom_into_pile():
+    return simulate(load_scene(SCENES / "heavy_boom_into_pile.toml"))
+
+
+def test_a_boom_lowered_into_the_pile_is_reported_with_its_time(boom_into_pile):
+    """The boom's underside meets the pile as the luff passes about 0.4 deg down (the boom 1.75 m
+    deep about its line): the contact starts then, is deepest at the path's lowest point and ends
+    as the boom rises past the same luff."""
+    result = boom_into_pile
+    collision = result.metrics["collision"]
+    (contact,) = collision["contacts"]
+    assert contact["bodies"] == ["boom", "pile"]
+    assert 150.0 < contact["time_s"] < 250.0 and 350.0 < contact["end_s"] < 450.0
+    assert contact["depth_time_s"] == pytest.approx(300.0, abs=5.0) and contact["depth_m"] > 3.0
+    assert collision["pile"]["boom"]["clearance_m"] == pytest.approx(-contact["depth_m"])
+    # Before the contact the boom was clear: its measured clearance at the record's samples.
+    machine = result.machine
+    boom = next(s for s in machine.collision_shapes if s.part == "boom")
+    before = result.time < contact["time_s"] - 1.0
+    positions, rotations = boom.mount.poses(result.q[before][-1:])
+    pile = result.reclaim
+    clearance = clearances(pile.z_start, pile.x, pile.y, np.array([boom.kind]), boom.half[None], positions,
+                           rotations, 10.0)[0]
+    assert 0.0 < clearance < 1.5
+    # The wheel's envelope is no collision with the pile it cuts.
+    assert "wheel" not in collision["pile"]
+
+
+def test_scenes_without_a_pile_have_no_collision_object():
+    assert "collision" not in simulate(load_scene(SCENES / "pid_paper.toml")).metrics
