@@ -39,6 +39,9 @@ class ReclaimEnv(gymnasium.Env):
             which each episode's seed sets).
         duration: s an episode lasts at most, then truncated with info["ended"] "time limit";
             None (default): the whole path.
+        instruments: add the belt scale (t/h) and the wheel motor's current (A) to the
+            observation, entries 19 and 20 (bwr_twin.gym.scales); a scene without both is refused
+            with a SceneError naming it.
 
     Episodes beyond the twin's bounds (more than 12 h of computing, half of the memory, as
     `bwr_twin.run` estimates a run) are refused when the environment is made. An environment
@@ -58,15 +61,16 @@ class ReclaimEnv(gymnasium.Env):
                  force_scale: Sequence[float] | None = None,
                  acceleration_scale: float = DEFAULT_ACCELERATION_SCALE,
                  error_scale: float = DEFAULT_ERROR_SCALE, reward_weights: Sequence[float] = DEFAULT_WEIGHTS,
-                 overrides: Mapping[str, Any] | None = None, duration: float | None = None):
+                 overrides: Mapping[str, Any] | None = None, duration: float | None = None,
+                 instruments: bool = False):
         self.episodes = Episodes(scene, 1, action_mode=action_mode, force_scale=force_scale,
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
                                  reward_weights=reward_weights, overrides=overrides, nthread=1,
-                                 duration=duration)
+                                 duration=duration, instruments=instruments)
         self.scales = self.episodes.scales
         self.drive = self.episodes.drive
         self.control_period = self.episodes.period
-        self.observation_space = observation_space()
+        self.observation_space = observation_space(self.scales.size)
         self.action_space = action_space()
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

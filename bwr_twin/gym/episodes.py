@@ -29,7 +29,7 @@ from bwr_twin.gym import kernels
 from bwr_twin.gym.actions import checked_actions, make_drive
 from bwr_twin.gym.kernels import observe
 from bwr_twin.gym.reward import tracking_reward
-from bwr_twin.gym.scales import OBSERVATION_LIMIT, OBSERVATION_SIZE, Scales
+from bwr_twin.gym.scales import INSTRUMENTS, OBSERVATION_LIMIT, Scales
 from bwr_twin.gym.spaces import ENV_ID
 from bwr_twin.model.machine import AXES, describe
 from bwr_twin.shipped import find_scene
@@ -76,7 +76,8 @@ class Episodes:
     Attributes:
         scales: the observation's scales (`bwr_twin.gym.scales`).
         period: s, the scene's control period: one step.
-        observation: (count, 19) float32, each slot's latest observation.
+        observation: (count, 19) float32, each slot's latest observation; (count, 21) with the
+            instruments (`scales.size`).
         error: (count, 3) each slot's true position error at that observation (m, rad).
         elapsed: (count,) s since the path's start at that observation.
         seed: (count,) the scene seed of each slot's episode.
@@ -86,13 +87,17 @@ class Episodes:
 
     def __init__(self, scene: str | Path, count: int, *, action_mode: str, force_scale: Sequence[float] | None,
                  acceleration_scale: float, error_scale: float, reward_weights: Sequence[float],
-                 overrides: Mapping[str, Any] | None, nthread: int, duration: float | None = None):
-        """Raises BwrError for a bad scene, path or model or for episodes beyond the twin's
-        bounds (bwr_twin.sim.budget), ValueError for a bad argument."""
+                 overrides: Mapping[str, Any] | None, nthread: int, duration: float | None = None,
+                 instruments: bool = False):
+        """Raises BwrError for a bad scene, path or model, for episodes beyond the twin's bounds
+        (bwr_twin.sim.budget) or for `instruments` on a scene without them, ValueError for a
+        bad argument."""
         self.scene = find_scene(scene)
         self.where = f"{ENV_ID} ({self.scene.name})"
         self.overrides = dict(overrides or {})
         self.nthread = nthread
+        if not isinstance(instruments, (bool, np.bool_)):
+            raise ValueError(f"instruments must be True or False, got {instruments!r}")  # noqa: TRY004 - as every bad keyword
         if not error_scale > 0:
             raise ValueError(f"error_scale must be > 0 m, got {error_scale!r}")
         self.weights = np.asarray(reward_weights, dtype=float)
@@ -106,13 +111,14 @@ class Episodes:
         self.limit = _limit(scene, duration)
         _check_budget(scene, count, self.limit)  # before the path is sampled: a via point at 1e9 s is refused
         first = Lockstep([scene], nthread=1, observe=False)
-        self.scales = Scales.of(first, error_scale)
+        self.scales = Scales.of(first, error_scale, bool(instruments))
+        self.instruments = bool(instruments)
         self.period = first.period
         self.envelope = first.machine.envelope
         self.drive = make_drive(action_mode, first, count, force_scale=force_scale,
                                 acceleration_scale=acceleration_scale)
         self.count = count
-        self.observation = np.zeros((count, OBSERVATION_SIZE), dtype=np.float32)
+        self.observation = np.zeros((count, self.scales.size), dtype=np.float32)
         if count == 1:  # step_one's kernel writes them: views of one state array
             self._state = state = np.zeros(kernels.ELAPSED + 1)
             self.error, self._q, self._qd, self._qdd_ref = (
@@ -122,6 +128,7 @@ class Episodes:
             self._constants = np.concatenate([self.envelope.ravel(), self.scales.error, self.weights,
                                               self.scales.offset, self.scales.divisor, [OBSERVATION_LIMIT]])
             self._outside = np.zeros(3, dtype=bool)
+            self._instruments_one = self.observation[0, INSTRUMENTS]  # a view: written in place
         else:
             self.error = np.zeros((count, 3))
             self.elapsed = np.zeros(count)
@@ -189,6 +196,8 @@ class Episodes:
                                     min(k, loop.samples - 1), q_measured, qd_measured, k * loop.period,
                                     self._constants, self._state, self._outside, self.observation)
         reward = float(self._state[kernels.REWARD])
+        if self.instruments and not (failed or status & kernels.NOT_FINITE):  # observed as finish_one observes
+            self.scales.observe_instruments_one(loop, self._instruments_one)
         if not (status or failed or loop.done or k == self.limit):
             return reward, False, False, None
         self._leave(0)
@@ -245,10 +254,12 @@ class Episodes:
         slots = group.slots[runs]
         self._q[slots], self._qd[slots], self._qdd_ref[slots] = q[runs], qd[runs], qdd_desired[k]
         self.elapsed[slots] = loop.k * loop.period
-        observation = np.empty((len(runs), OBSERVATION_SIZE), dtype=np.float32)
         scales = self.scales
+        observation = np.empty((len(runs), scales.size), dtype=np.float32)
         observe(q[runs], qd[runs], q_desired[k], qd_desired[k], qdd_desired[k], loop.k * loop.period,
                 scales.offset, scales.divisor, OBSERVATION_LIMIT, observation)
+        if self.instruments:
+            scales.observe_instruments(loop, runs, observation[:, INSTRUMENTS])
         self.observation[slots] = observation
 
     def _leave(self, slot: int) -> None:

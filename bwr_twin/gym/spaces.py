@@ -11,9 +11,10 @@ ENV_ID = "bwr_twin/Reclaim-v0"
 SCENE_SEEDS = 2**63  # the twin keeps a run's seed as an int64: scene seeds lie in [0, 2**63)
 
 
-def observation_space() -> spaces.Box:
-    """19 float32 entries in [-OBSERVATION_LIMIT, OBSERVATION_LIMIT] (layout: bwr_twin.gym.scales)."""
-    return spaces.Box(-OBSERVATION_LIMIT, OBSERVATION_LIMIT, (OBSERVATION_SIZE,), dtype=np.float32)
+def observation_space(size: int = OBSERVATION_SIZE) -> spaces.Box:
+    """`size` float32 entries in [-OBSERVATION_LIMIT, OBSERVATION_LIMIT]: 19, or 21 with the
+    instruments (layout: bwr_twin.gym.scales)."""
+    return spaces.Box(-OBSERVATION_LIMIT, OBSERVATION_LIMIT, (size,), dtype=np.float32)
 
 
 def action_space() -> spaces.Box:

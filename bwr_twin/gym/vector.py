@@ -43,18 +43,19 @@ class ReclaimVectorEnv(VectorEnv):
                  force_scale: Sequence[float] | None = None,
                  acceleration_scale: float = DEFAULT_ACCELERATION_SCALE,
                  error_scale: float = DEFAULT_ERROR_SCALE, reward_weights: Sequence[float] = DEFAULT_WEIGHTS,
-                 overrides: Mapping[str, Any] | None = None, nthread: int = 0, duration: float | None = None):
+                 overrides: Mapping[str, Any] | None = None, nthread: int = 0, duration: float | None = None,
+                 instruments: bool = False):
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.num_envs = num_envs
         self.episodes = Episodes(scene, num_envs, action_mode=action_mode, force_scale=force_scale,
                                  acceleration_scale=acceleration_scale, error_scale=error_scale,
                                  reward_weights=reward_weights, overrides=overrides, nthread=nthread,
-                                 duration=duration)
+                                 duration=duration, instruments=instruments)
         self.scales = self.episodes.scales
         self.drive = self.episodes.drive
         self.control_period = self.episodes.period
-        self.single_observation_space = observation_space()
+        self.single_observation_space = observation_space(self.scales.size)
         self.single_action_space = action_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)

@@ -44,6 +44,7 @@ class ScanLog:
         to fill, in world m (NaN until filled)."""
         if not self.keep and self._hits:
             self.count += 1
+            self._times[0] = time
             self._hits[0][0].fill(np.nan)
             return self._origins[0][0], self._hits[0][0]
         slot = self.count % LOG_BLOCK
@@ -53,6 +54,14 @@ class ScanLog:
         self._times.append(time)
         self.count += 1
         return self._origins[-1][slot], self._hits[-1][slot]
+
+    def latest(self, run: int) -> tuple[float, np.ndarray, np.ndarray] | None:
+        """Run `run`'s latest scan: its time (s), origin (3,) and hits (rays, 3) world m, views
+        that the next scan overwrites (float32, NaN: dropped or missed); None before the first."""
+        if not self.count:
+            return None
+        slot = (self.count - 1) % LOG_BLOCK if self.keep else 0
+        return self._times[-1], self._origins[-1][slot, run], self._hits[-1][slot, run]
 
     def share(self, run: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Run `run`'s scans: t (n,), origin (n, 3), hits (n, rays, 3)."""

@@ -97,6 +97,7 @@ class RateInstruments:
             self.belt_scale[:] = 0.0
         if motor is not None:
             self._current_noise = NormalStream(seeds, CURRENT_STREAM)
+            self.wheel_current[:] = self.wheel_power[:] = 0.0  # before the first reading
 
     def read(self, k: int, rate: np.ndarray, power: np.ndarray, scale_frozen: bool = False) -> None:
         """Period k's readings of the true belt rate at the discharge (t/h) and the wheel's shaft power (W)."""

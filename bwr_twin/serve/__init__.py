@@ -6,6 +6,7 @@ the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.m
     ranges.py         each analog variable's EURange, from the MJCF or a documented rule
     machinery.py      OPC 40001-1: Objects/Machines, Identification, MachineryItemState, operation mode
     alarms.py         limit switches and watchdog trips as alarm events on Objects/Reclaimer
+    sensing.py        the scanners' latest profiles and the faults' states, where the run has them
     nodes.py          typed nodes with the twin's node ids, which asyncua's shortcuts do not make
     nodeset.py        --nodeset: the address space as a UA NodeSet2 file
     clock.py          lockstep and real-time modes, setpoints, watchdog, overruns

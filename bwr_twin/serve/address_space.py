@@ -5,11 +5,13 @@ unit and meaning. The server publishes a variable from the value of the same nam
 readings it is given (`AddressSpace.publish`), so a new machine-level variable is one row here
 and one value in the readings. A Double is an analog item of OPC UA Part 8 (AnalogUnitType,
 or AnalogItemType without a unit) with its EURange, given to `build` (bwr_twin.serve.ranges).
+The rows of `INSTRUMENT_VARIABLES` are served only by a run that has the instrument; the
+scanners' profiles and the faults' states are `bwr_twin.serve.sensing`'s.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 
@@ -33,6 +35,7 @@ UNITS = {
     "N·m": ("NU", "newton metre"),
     "s": ("SEC", "second"),
     "t/h": ("E18", "tonne per hour"),
+    "A": ("AMP", "ampere"),
 }
 # OPC UA Part 8's variable types of a Double with a physical meaning: with its unit (i=17497,
 # "AnalogUnitItemType" in some texts) or without (AnalogItemType); both carry EURange.
@@ -67,6 +70,15 @@ MACHINE_VARIABLES = (
              "periods; drives at zero until Reset"),
     Variable("Overruns", U, None, "real-time mode: control periods computed later than the next one was due"),
     Variable("ReclaimRate", D, "t/h", "what the bucket wheel reclaims, as the belt scale sees it; 0 without a stockpile"),
+)
+
+# Served only when the run has the instrument: a scene with a [stockpile] on a machine whose MJCF
+# describes it (docs/sensing.md); published as the twin reads it every control period.
+INSTRUMENT_VARIABLES = (
+    Variable("BeltScale", D, "t/h", "the belt scale's reading of the boom conveyor: the belt's rate at the "
+             "discharge, the transport delay later, with its noise and filter; 0 before the first period"),
+    Variable("WheelCurrent", D, "A", "the wheel motor's line current as its drive measures it, with its noise; "
+             "0 before the first period"),
 )
 
 AXIS_VARIABLES = (
@@ -130,15 +142,20 @@ class AddressSpace:
 
     @classmethod
     async def build(cls, server: Server, methods: Mapping[str, Callable],
-                    ranges: Mapping[tuple[str, str | None], tuple[float, float]]) -> AddressSpace:
+                    ranges: Mapping[tuple[str, str | None], tuple[float, float]],
+                    instruments: Sequence[str] = ()) -> AddressSpace:
         """Create Objects/Reclaimer with its variables and `methods` (name -> async handler);
-        `ranges`: the EURange (low, high) of every Double, by (variable, axis or None)."""
+        `ranges`: the EURange (low, high) of every Double, by (variable, axis or None);
+        `instruments`: the names of the INSTRUMENT_VARIABLES the run has."""
         space = cls(server, await server.register_namespace(NAMESPACE_URI), ranges)
         ns = space.namespace
         space.objects[None] = reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
                                                                                 ua.QualifiedName("Reclaimer", ns))
         for variable in MACHINE_VARIABLES:
             await space._add_variable(reclaimer, variable, None)
+        for variable in INSTRUMENT_VARIABLES:
+            if variable.name in instruments:
+                await space._add_variable(reclaimer, variable, None)
         for axis in AXES:
             space.objects[axis] = folder = await reclaimer.add_object(ua.NodeId(f"Reclaimer.{axis_name(axis)}", ns),
                                                                       ua.QualifiedName(axis_name(axis), ns))
@@ -157,15 +174,29 @@ class AddressSpace:
         return space
 
     async def _add_variable(self, parent: Node, variable: Variable, axis: str | None) -> None:
-        ns = self.namespace
         node_id = node_path(variable.name, axis).replace("/", ".")
+        eu_range = self.ranges[variable.name, axis] if variable.variant == D else None
+        self.nodes[variable.name, axis] = await self.add_variable(parent, node_id, variable, unit_of(variable, axis),
+                                                                  eu_range)
+
+    async def add_variable(self, parent: Node, node_id: str, variable: Variable, unit: str | None,
+                           eu_range: tuple[float, float] | None, *, value: object = None,
+                           length: int | None = None) -> Node:
+        """A variable of the twin's namespace under `parent`, with its Description (the meaning
+        and unit) and, with a unit, its EngineeringUnits; a Double an analog item with
+        `eu_range`. `length`: a one-dimensional array of that many values (the initial `value`,
+        a list), else a scalar (`value`, default zero)."""
+        ns = self.namespace
         name = ua.QualifiedName(variable.name, ns)
-        unit = unit_of(variable, axis)
+        initial = _initial(variable.variant) if value is None else value
         if variable.variant == D:
-            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(0.0, D),
-                                            ANALOG_UNIT_TYPE if unit else ANALOG_ITEM_TYPE)
+            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(initial, D),
+                                            ANALOG_UNIT_TYPE if unit else ANALOG_ITEM_TYPE, length=length)
+        elif length is not None:
+            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(initial, variable.variant),
+                                            ua.ObjectIds.BaseDataVariableType, length=length)
         else:
-            node = await parent.add_variable(ua.NodeId(node_id, ns), name, _initial(variable.variant), variable.variant)
+            node = await parent.add_variable(ua.NodeId(node_id, ns), name, initial, variable.variant)
         meaning = f"{variable.meaning}, {unit}" if unit else variable.meaning
         description = ua.DataValue(ua.Variant(ua.LocalizedText(meaning)))
         await node.write_attribute(ua.AttributeIds.Description, description)
@@ -174,12 +205,12 @@ class AddressSpace:
                                     ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
                                     ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
         if variable.variant == D:
-            low, high = self.ranges[variable.name, axis]
+            low, high = eu_range
             await nodes.add_property(node, ua.NodeId(f"{node_id}.EURange", ns), ua.QualifiedName("EURange", 0),
                                      ua.Variant(ua.Range(Low=low, High=high)), data_type=ua.ObjectIds.Range)
         if variable.writable:
             await node.set_writable()
-        self.nodes[variable.name, axis] = node
+        return node
 
     def writable(self) -> list[str]:
         """Browse paths of the nodes a client may write."""
@@ -201,9 +232,14 @@ class AddressSpace:
                     await write(self.nodes[name, axis].nodeid, _data_value(axis_value, variant, now))
 
 
-_VARIABLES = {v.name: v for v in MACHINE_VARIABLES + AXIS_VARIABLES}
+_VARIABLES = {v.name: v for v in MACHINE_VARIABLES + INSTRUMENT_VARIABLES + AXIS_VARIABLES}
 _PYTHON = {D: float, B: bool, S: str, U: int}
 
 
 def _data_value(value: object, variant: ua.VariantType, now: datetime) -> ua.DataValue:
-    return ua.DataValue(ua.Variant(_PYTHON[variant](value), variant), SourceTimestamp=now, ServerTimestamp=now)
+    return data_value(_PYTHON[variant](value), variant, now)
+
+
+def data_value(value: object, variant: ua.VariantType, now: datetime) -> ua.DataValue:
+    """A value as published: stamped with the wall-clock time `now`, at the source and the server."""
+    return ua.DataValue(ua.Variant(value, variant), SourceTimestamp=now, ServerTimestamp=now)

@@ -20,12 +20,16 @@ async def add_object(parent: Node, node_id: ua.NodeId, name: ua.QualifiedName, t
 
 async def add_variable(parent: Node, node_id: ua.NodeId, name: ua.QualifiedName, value: ua.Variant,
                        type_definition: int | ua.NodeId, *, reference: int = ua.ObjectIds.HasComponent,
-                       data_type: int | None = None, description: str | None = None) -> Node:
-    """A read-only scalar variable of `type_definition` holding `value`; its DataType the
-    variant's built-in type unless `data_type` (a structure's, say) is given."""
+                       data_type: int | None = None, description: str | None = None,
+                       length: int | None = None) -> Node:
+    """A read-only variable of `type_definition` holding `value`: a scalar, or with `length` a
+    one-dimensional array of that many values; its DataType the variant's built-in type unless
+    `data_type` (a structure's, say) is given."""
+    shape = ({"ValueRank": ua.ValueRank.Scalar} if length is None else
+             {"ValueRank": ua.ValueRank.OneDimension, "ArrayDimensions": [length]})
     attributes = ua.VariableAttributes(
         DisplayName=ua.LocalizedText(name.Name), Description=ua.LocalizedText(description or name.Name),
-        Value=value, DataType=ua.NodeId(data_type or value.VariantType.value), ValueRank=ua.ValueRank.Scalar,
+        Value=value, DataType=ua.NodeId(data_type or value.VariantType.value), **shape,
         AccessLevel=_READ, UserAccessLevel=_READ)
     return await _add(parent, node_id, name, ua.NodeClass.Variable, type_definition, reference, attributes)
 

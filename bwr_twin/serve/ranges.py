@@ -10,6 +10,14 @@ docs/opcua.md states; never infinite, never empty.
 
 SimTime spans the path (of a bench plan, the most it may take), ControlPeriod 0 to the period,
 ReclaimRate 0 to the wheel's capacity at the stockpile's bulk density.
+
+The instruments and scanners, served only by a run that has them (bwr_twin.serve.sensing):
+
+    BeltScale                  as ReclaimRate: what it weighs is what the wheel carries
+    WheelCurrent               0 to the motor's current at the wheel drive's rating (`wheel_power`);
+                               without one, at the power of cutting the wheel's capacity with the
+                               scene's [digging]; without that, NO_POWER_CURRENT
+    a scanner's Ranges         0 to its range (`{site}_range`); Angles its fan; ScanTime as SimTime
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ UNRATED_ACCELERATION = 1.0  # m/s², rad/s²: an unrated drive's range gives thi
 UNRATED_CROSSING = 60.0  # s: an axis without a rated speed crosses its position range in this time
 UNLIMITED_POSITION = (1000.0, math.pi)  # m (a stockyard's rail), rad (a turn): no end stops, no envelope
 NO_STOCKPILE_RATE = 1.0  # t/h: the span without a stockpile (the rate reads 0 throughout)
+NO_POWER_CURRENT = 1.0  # A: the span of a wheel current that no [digging] loads (it reads its noise about 0)
 
 Range = tuple[float, float]
 
@@ -55,7 +64,40 @@ def eu_ranges(loop: Lockstep) -> dict[tuple[str, str | None], Range]:
     ranges["SimTime", None] = (0.0, float(loop.duration))
     ranges["ControlPeriod", None] = (0.0, float(loop.period))
     ranges["ReclaimRate", None] = (0.0, _reclaim_capacity(loop))
+    instruments = loop.instruments
+    if instruments is not None and instruments.scale is not None:
+        ranges["BeltScale", None] = (0.0, belt_scale_span(loop))
+    if instruments is not None and instruments.motor is not None:
+        ranges["WheelCurrent", None] = (0.0, wheel_current_span(loop))
     return ranges
+
+
+def belt_scale_span(loop: Lockstep) -> float:
+    """t/h: the top of the belt scale's range, the wheel's capacity (as ReclaimRate's)."""
+    return _reclaim_capacity(loop)
+
+
+def wheel_current_span(loop: Lockstep) -> float:
+    """A: the top of the wheel current's range, the current at the wheel drive's rated power (the
+    digging load never draws more), else at the power of cutting the wheel's capacity; ValueError
+    if the run has no wheel motor."""
+    motor = loop.instruments.motor if loop.instruments is not None else None
+    if motor is None:
+        raise ValueError("the run has no wheel motor (custom numeric 'wheel_motor', docs/sensing.md)")
+    wheel = loop.machine.wheel
+    power = wheel.power
+    if not math.isfinite(power):
+        digging = loop.scenes[0].digging
+        if digging is None:
+            return NO_POWER_CURRENT
+        power = digging.cutting_energy * wheel.capacity + digging.idle_power
+    return power * motor.amps_per_watt
+
+
+def scanner_ranges(scanner, duration: float) -> dict[str, Range]:
+    """A scanner's Ranges (m), Angles (rad) and ScanTime (s) ranges, for a run of `duration` s."""
+    return {"Ranges": (0.0, float(scanner.max_range)), "Angles": (float(scanner.fan[0]), float(scanner.fan[1])),
+            "ScanTime": (0.0, float(duration))}
 
 
 def _reclaim_capacity(loop: Lockstep) -> float:

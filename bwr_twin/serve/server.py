@@ -16,7 +16,7 @@ from asyncua import Server
 from bwr_twin.config.scene import Scene
 from bwr_twin.model.machine import AXES
 from bwr_twin.serve import LOCKSTEP, ServeError
-from bwr_twin.serve.address_space import METHODS, NAMESPACE_URI, AddressSpace
+from bwr_twin.serve.address_space import INSTRUMENT_VARIABLES, METHODS, NAMESPACE_URI, AddressSpace
 from bwr_twin.serve.alarms import Alarms
 from bwr_twin.serve.announce import exposure_lines, is_loopback
 from bwr_twin.serve.clock import Clock
@@ -25,6 +25,7 @@ from bwr_twin.serve.nodeset import write_nodeset
 from bwr_twin.serve.ranges import eu_ranges
 from bwr_twin.serve.results import RunWriter
 from bwr_twin.serve.security import secure
+from bwr_twin.serve.sensing import Sensing
 from bwr_twin.serve.twin import Twin
 from bwr_twin.sim.plant import mujoco_warnings
 
@@ -99,10 +100,16 @@ async def serve(scene: Scene, options: Options) -> int:
 
 async def build_address_space(server: Server, clock: Clock) -> AddressSpace:
     """The twin's nodes on `server`, typed: the contract's variables as analog items with their
-    ranges, the Machinery building blocks, the alarms; all published by `clock` from now on."""
+    ranges, the instruments, scanners and faults the run has, the Machinery building blocks, the
+    alarms; all published by `clock` from now on."""
     twin = clock.twin
-    clock.space = space = await AddressSpace.build(server, clock.methods(), eu_ranges(twin.loop))
+    ranges = eu_ranges(twin.loop)
+    instruments = [variable.name for variable in INSTRUMENT_VARIABLES if (variable.name, None) in ranges]
+    clock.space = space = await AddressSpace.build(server, clock.methods(), ranges, instruments)
     clock.listeners = [await Machinery.build(space, twin.loop.machine), await Alarms.build(space)]
+    sensing = await Sensing.build(space, twin)  # the scanners and the faults, if the run has them
+    if sensing is not None:
+        clock.listeners.append(sensing)
     for index, axis in enumerate(AXES):
         server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
     await clock.publish(setpoint=True)

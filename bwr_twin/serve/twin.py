@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from bwr_twin.config.scene import Scene
+from bwr_twin.sensing.outputs import ScanLog
 from bwr_twin.sim.lockstep import Lockstep
 from bwr_twin.sim.record import RunResult
 
@@ -36,6 +38,11 @@ class Twin:
         measured, at_limit, sim_time: the same as Python values, without building `reading`:
             MEASURED's (3,) lists in its order, the three limit switches, SimTime (s);
             `drive_applied()` and `reclaim_rate()` give the rest.
+
+    A run with instruments, scanners or faults reads them too, only as `reading` is built: the
+    belt scale (t/h) and wheel current (A) of the last period ("BeltScale", "WheelCurrent"),
+    each scanner's latest scan ("Scans", `LatestScan`s) and each fault's state in the period
+    that starts at SimTime ("Faults", bools in the scene's order).
 
     Every period's limit switches are read, so that a switch that closes and opens again
     between two publications is still seen: `take_limit_switches` hands over the changes.
@@ -98,8 +105,25 @@ class Twin:
                 "PeriodsLeft": self.periods_left,
                 **{name: np.array(values) for name, values in zip(MEASURED, self.measured)},
                 "AtLimit": np.array(self.at_limit),
+                **self._sensing(),
             }
         return self._reading
+
+    def _sensing(self) -> dict[str, object]:
+        """The readings of the run's instruments, scanners and faults: only those it has."""
+        loop, found = self.loop, {}
+        instruments = loop.instruments
+        if instruments is not None:  # the readings of the last period; none before the first
+            started = loop.k > 0
+            if instruments.scale is not None:
+                found["BeltScale"] = float(instruments.belt_scale[0]) if started else 0.0
+            if instruments.motor is not None:
+                found["WheelCurrent"] = float(instruments.wheel_current[0]) if started else 0.0
+        if loop.scanning is not None:
+            found["Scans"] = tuple(latest_scan(log) for log in loop.scanning.logs)
+        if loop.faults.faults:  # the period of SimTime: at the path's end, the last one advanced
+            found["Faults"] = tuple(loop.faults.acting(min(loop.k, loop.samples - 1)))
+        return found
 
     def drive_applied(self) -> list[float]:
         """The forces the drives applied over the last period (N, N m); zero before the first."""
@@ -158,3 +182,25 @@ class Twin:
             position, velocity, acceleration = position[0], velocity[0], acceleration[0]
         self.measured = (q_measured[0].tolist(), qd_measured[0].tolist(), position.tolist(), velocity.tolist(),
                          acceleration.tolist())
+
+
+@dataclass(frozen=True, eq=False)
+class LatestScan:
+    """A scanner's latest scan of run 0: the `count`-th of `log`, at SimTime `time` s, from
+    `origin` (3,) world m, its `hits` (rays, 3) world m (float32, NaN: dropped or missed)."""
+
+    log: ScanLog
+    count: int
+    time: float
+    origin: np.ndarray
+    hits: np.ndarray
+
+    def ranges(self) -> np.ndarray:
+        """(rays,) m from the origin to each hit along its ray; NaN where nothing returned."""
+        return np.sqrt(((self.hits.astype(float) - self.origin) ** 2).sum(axis=1))
+
+
+def latest_scan(log: ScanLog) -> LatestScan | None:
+    """Run 0's latest scan; None before the first."""
+    latest = log.latest(0)
+    return None if latest is None else LatestScan(log, log.count, *latest)
