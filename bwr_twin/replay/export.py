@@ -7,7 +7,8 @@ such a recording, so one run's readout is a scene label here; the charts are SVG
 column beside the scene, with a cursor that follows the playback and seeks it when clicked, below
 several runs' readout (bwr_twin.replay.export_charts). Only poses, the trails' tips and the label
 change per frame, which keeps the paper's 700 s reclaim at 10x and 25 fps under 2 MB, and four
-runs of it under 5 MB.
+runs of it under 5 MB. A run's laser scans are drawn as `scan_view.EXPORT` decimates them, both
+piles recorded, and the column starts with the controls that choose the pile shown.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from bwr_twin.replay.charts import charts
 from bwr_twin.replay.export_charts import COLUMN_SHARE, charts_column, readout_data
 from bwr_twin.replay.recording import Recording
 from bwr_twin.replay.runs import Run
+from bwr_twin.replay.scan_view import EXPORT, scanned_note
 from bwr_twin.replay.scenery import ASPECT
 from bwr_twin.replay.view import SceneView
 from bwr_twin.results.ownership import HTML_TAG, check_output
@@ -69,7 +71,7 @@ def _record(server: viser.ViserServer, runs: list[Run], speed: float, frame_rate
     """The recorded scene, with the charts' column added to the page."""
     recordings = [run.recording for run in runs]
     view = SceneView(server, [r.plan for r in recordings], names=[run.label for run in runs],
-                     side_by_side=side_by_side, aspect=ASPECT * (1.0 - COLUMN_SHARE))
+                     side_by_side=side_by_side, aspect=ASPECT * (1.0 - COLUMN_SHARE), scans=EXPORT)
     for k, recording in enumerate(recordings):
         view.attach(recording, k)
     start = min(float(r.plan.time[0]) for r in recordings)
@@ -88,7 +90,8 @@ def _record(server: viser.ViserServer, runs: list[Run], speed: float, frame_rate
         if i + 1 < len(frames):
             serializer.insert_sleep(1.0 / frame_rate)
     column = charts_column(charts(recordings, [run.name for run in runs]), [True] * len(runs), start=start,
-                           speed=speed, readout=readout_data(runs, duration) if len(runs) > 1 else None)
+                           speed=speed, readout=readout_data(runs, duration) if len(runs) > 1 else None,
+                           scanner=scanned_note(recordings[0].scans, EXPORT.known_period) if view.scanning else None)
     page = serializer.as_html()
     end = page.rindex("</body>")
     return page[:end] + column + page[end:]

@@ -20,14 +20,20 @@ import numpy as np
 
 from bwr_twin.model.machine import AXES, UNITS, to_display
 from bwr_twin.replay.charts import Chart
-from bwr_twin.replay.page_script import export_script
+from bwr_twin.replay.page_script import SCANNER_FAN_ID, SCANNER_PILE_ID, export_scanner_script, export_script
 from bwr_twin.replay.runs import Run
+from bwr_twin.replay.scan_view import PILE_SHOWN
 from bwr_twin.replay.style import hex_colour, run_colour
 
 CHART_SIZE = (5.0, 2.7)  # in, each chart's figure
 PLOT_BOX = (0.13, 0.87, 0.33, 0.88)  # left, right, bottom, top of every plot area, as figure fractions
 COLUMN_SHARE = 0.34  # of the page's width: the column right of the scene
 LEGEND_COLUMNS = 2
+SCANNER_STYLE = """<style>
+#bwr-scanner { font-size: 12px; padding: 0.4em 0.6em; border-bottom: 1px solid #eee; }
+#bwr-scanner label { margin-right: 1.2em; white-space: nowrap; }
+#bwr-scanner p { margin: 0.3em 0 0; color: #555; }
+</style>"""
 DIGITS = 6  # significant digits of the readout's errors
 
 
@@ -87,10 +93,11 @@ def _rounded(values: np.ndarray) -> list[float]:
 
 
 def charts_column(charts: Sequence[Chart], shown: Sequence[bool], *, start: float, speed: float,
-                  readout: dict | None = None) -> str:
-    """The page's column and its script, to go at the end of the export's <body>: the runs'
-    `readout` (`readout_data`; None: the scene carries it) and the charts. The recording's
-    playback time p is the runs' time start + p * speed."""
+                  readout: dict | None = None, scanner: str | None = None) -> str:
+    """The page's column and its script, to go at the end of the export's <body>: with a run that
+    scanned, the scanner's controls and `scanner`, what the scanned pile is; the runs' `readout`
+    (`readout_data`; None: the scene carries it) and the charts. The recording's playback time p
+    is the runs' time start + p * speed."""
     figures = []
     for chart in charts:
         if not chart.shown(shown):
@@ -120,5 +127,12 @@ def charts_column(charts: Sequence[Chart], shown: Sequence[bool], *, start: floa
         data = ('<script type="application/json" id="bwr-readout-data">'
                 + json.dumps(readout, separators=(",", ":")).replace("</", "<\\/") + "</script>")
         figures.insert(0, '<div id="bwr-readout"></div>')
-    return (f'{style}{data}<div id="bwr-charts">{"".join(figures)}</div>'
-            f"<script>{export_script(start, speed)}</script>")
+    scripts = export_script(start, speed)
+    if scanner is not None:
+        choices = "".join(f'<option value="{kind}">{kind}</option>' for kind in PILE_SHOWN)
+        figures.insert(0, f'<div id="bwr-scanner"><label>Pile shown <select id="{SCANNER_PILE_ID}">{choices}</select>'
+                          f'</label><label><input type="checkbox" id="{SCANNER_FAN_ID}" checked> Scan fan and hits'
+                          f'</label><p><i>Scanned</i>: {html.escape(scanner)}</p></div>')
+        scripts += export_scanner_script()
+        style += SCANNER_STYLE
+    return f'{style}{data}<div id="bwr-charts">{"".join(figures)}</div><script>{scripts}</script>'

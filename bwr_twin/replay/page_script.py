@@ -154,6 +154,55 @@ _EXPORT = r"""
 """
 
 
+# The export's scanner controls: which pile and whether the fan show, at every site whose run scanned.
+# A recording's nodes have no GUI to hide them, and viser sets each three.js object's `visible` from
+# its own state every frame; so the script gives the nodes /sites/<k>/pile, /scanned and /scan a
+# `visible` that says what the controls choose (their children follow: three.js skips the children
+# of a hidden object), again whenever the playback makes the node anew.
+_EXPORT_SCANNER = r"""
+(() => {
+  const pile = document.getElementById("%(pile)s"), fan = document.getElementById("%(fan)s");
+  const NODE = /^\/sites\/\d+\/(pile|scanned|scan)$/;
+  function wanted(kind) {
+    if (kind === "scan") return fan.checked;
+    return (kind === "pile") === (pile.value === "true");
+  }
+  function frame() {
+    const nodes = window.__viserMutable?.nodeRefFromName ?? {};
+    let changed = false;
+    for (const [name, node] of Object.entries(nodes)) {
+      const match = NODE.exec(name);
+      if (!match || !node) continue;
+      if (!node.bwrChosen) {
+        let own = node.visible;
+        Object.defineProperty(node, "visible", {
+          configurable: true,
+          get() { return this.bwrShown ?? own; },
+          set(value) { own = value; },
+        });
+        node.bwrChosen = true;
+      }
+      const shown = wanted(match[1]);
+      if (node.bwrShown !== shown) {
+        node.bwrShown = shown;
+        changed = true;
+      }
+    }
+    if (changed) window.__viserMutable?.requestRender?.();
+    requestAnimationFrame(frame);
+  }
+  requestAnimationFrame(frame);
+})();
+"""
+SCANNER_PILE_ID = "bwr-pile-shown"  # the export's <select> of the pile shown (tests look for it)
+SCANNER_FAN_ID = "bwr-fan-shown"  # its checkbox of the scan fan and hits
+
+
+def export_scanner_script() -> str:
+    """The export's script for its scanner controls (SCANNER_PILE_ID, SCANNER_FAN_ID)."""
+    return _EXPORT_SCANNER % {"pile": SCANNER_PILE_ID, "fan": SCANNER_FAN_ID}
+
+
 def export_script(start: float, speed: float) -> str:
     """The export's script: the charts' cursors at the playback's time, a click seeks the playback."""
     return _EXPORT % {"start": float(start), "speed": float(speed), "cursor": CURSOR_CLASS, "colour": CURSOR_COLOUR}

@@ -15,6 +15,7 @@ import viser
 from bwr_twin.replay import readout
 from bwr_twin.replay.charts import charts
 from bwr_twin.replay.page_script import live_script_html
+from bwr_twin.replay.scan_view import LIVE, PILE_SHOWN, scanned_note
 from bwr_twin.replay.style import hex_colour, run_colour
 
 if TYPE_CHECKING:
@@ -33,6 +34,8 @@ class Player(Protocol):
     def set_speed(self, speed: float) -> None: ...
     def show_run(self, k: int, shown: bool) -> None: ...
     def paint(self, run: int | None) -> None: ...
+    def show_pile(self, kind: str) -> None: ...
+    def show_fan(self, shown: bool) -> None: ...
 
 
 SPEEDS = (1, 100)  # x real time, the speed slider's range
@@ -67,9 +70,10 @@ def solid_choices(runs: Sequence[Run]) -> list[str]:
 
 
 class Panel:
-    """The GUI of `runs` on `server`, wired to `player`'s commands."""
+    """The GUI of `runs` on `server`, wired to `player`'s commands; with `scanning`, the scanner's
+    controls (the pile shown, the fan)."""
 
-    def __init__(self, server: viser.ViserServer, runs: Sequence[Run], player: Player):
+    def __init__(self, server: viser.ViserServer, runs: Sequence[Run], player: Player, *, scanning: bool = False):
         self.server, self.runs = server, list(runs)
         gui = server.gui
         plan = self.runs[0].recording.plan
@@ -99,6 +103,26 @@ class Panel:
                 def _(event: viser.GuiEvent) -> None:
                     choice = solid_choices(self.runs).index(event.target.value)
                     player.paint(choice if choice < len(self.runs) else None)
+
+        self.pile_shown: viser.GuiDropdownHandle | None = None
+        self.fan_shown: viser.GuiCheckboxHandle | None = None
+        if scanning:
+            with gui.add_folder("Scanner"):
+                self.pile_shown = gui.add_dropdown("Pile shown", PILE_SHOWN, initial_value=PILE_SHOWN[0],
+                                                   hint="the true pile, or the one the automation knew from its scans")
+                self.fan_shown = gui.add_checkbox("Scan fan and hits", initial_value=True,
+                                                  hint="the latest scan's rays and the last second's hits")
+                gui.add_markdown(f"*Scanned*: {scanned_note(self.runs[0].recording.scans, LIVE.known_period)}")
+
+            @self.pile_shown.on_update
+            def _(event: viser.GuiEvent) -> None:
+                if event.client is not None:  # a user's choice, not the player's own update
+                    player.show_pile(str(event.target.value))
+
+            @self.fan_shown.on_update
+            def _(event: viser.GuiEvent) -> None:
+                if event.client is not None:
+                    player.show_fan(bool(event.target.value))
 
         with gui.add_folder("Readout"):
             self.readout = gui.add_markdown("")
@@ -135,6 +159,13 @@ class Panel:
     def show_playing(self, playing: bool) -> None:
         self.play_button.label = "Pause" if playing else "Play"
         self.play_button.icon = viser.Icon.PLAYER_PAUSE if playing else viser.Icon.PLAYER_PLAY
+
+    def show_scanner(self, pile: str, fan: bool) -> None:
+        """The scanner's controls as the player shows the scene (a choice from Python, or another tab)."""
+        if self.pile_shown is not None and self.pile_shown.value != pile:
+            self.pile_shown.value = pile
+        if self.fan_shown is not None and self.fan_shown.value != fan:
+            self.fan_shown.value = fan
 
     def show_readout(self, t: float, shown: Sequence[bool], duration: float) -> None:
         if len(self.runs) == 1:

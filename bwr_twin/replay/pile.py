@@ -33,10 +33,11 @@ class PileView:
                  name: str = "/pile"):
         self.dug: DugHeights | None = None
         self.x, self.y, self.z_start = x, y, z_start
+        self.root = scene.add_frame(name, show_axes=False)  # the tiles' parent: shows or hides the pile
         ny, nx = z_start.shape
         step = display_step(z_start.shape)
-        self._rows = _samples(ny, step)
-        self._cols = _samples(nx, step)
+        self._rows = samples(ny, step)
+        self._cols = samples(nx, step)
         self._shown = self._display(z_start)
         self._start = self._shown.copy()
         gx, gy = np.meshgrid(x[self._cols], y[self._rows])
@@ -47,6 +48,14 @@ class PileView:
                 rows = slice(r0, min(r0 + TILE, len(self._rows) - 1) + 1)
                 cols = slice(c0, min(c0 + TILE, len(self._cols) - 1) + 1)
                 self._tiles.append(_Tile(scene, f"{name}/{r0}_{c0}", rows, cols, self._xy, self._shown, self._start))
+
+    @property
+    def visible(self) -> bool:
+        return self.root.visible
+
+    @visible.setter
+    def visible(self, shown: bool) -> None:
+        self.root.visible = shown
 
     def attach(self, history: PileHistory) -> None:
         self.dug = DugHeights(history)
@@ -103,7 +112,7 @@ def display_step(shape: tuple[int, int]) -> int:
     return max(1, math.ceil(math.sqrt(nx * ny / MAX_DISPLAY_VERTICES)))
 
 
-def _samples(count: int, step: int) -> np.ndarray:
+def samples(count: int, step: int) -> np.ndarray:
     """Every step-th index from 0, and always the last."""
     indices = np.arange(0, count, step)
     return indices if indices[-1] == count - 1 else np.append(indices, count - 1)

@@ -17,6 +17,7 @@ import viser
 
 from bwr_twin.replay.panel import INITIAL_SPEED, SPEEDS, Panel
 from bwr_twin.replay.runs import Run
+from bwr_twin.replay.scan_view import PILE_SHOWN
 from bwr_twin.replay.view import SceneView
 
 FRAME_RATE = 30.0  # Hz, scene and time slider (the charts' cursor follows the slider)
@@ -35,9 +36,10 @@ class Player:
         self.playing = False
         self.speed = float(INITIAL_SPEED)
         self.shown = [True] * len(self.runs)
+        self.pile_shown, self.fan_shown = "true", True  # with a run that scanned: which pile, and its fan
         self._actions: queue.Queue[Callable[[], None]] = queue.Queue()
         self._stopped = threading.Event()
-        self.panel = Panel(server, self.runs, self)
+        self.panel = Panel(server, self.runs, self, scanning=view.scanning)
         self.play_button, self.time_slider, self.speed_slider = (
             self.panel.play_button, self.panel.time_slider, self.panel.speed_slider)
         self.readout = self.panel.readout
@@ -68,6 +70,34 @@ class Player:
     def paint(self, solid: int | None) -> None:
         """Run `solid` in its MJCF colours and the rest translucent; None: each in its own colour."""
         self._actions.put(lambda: self.view.paint(solid))
+
+    def show_pile(self, kind: str) -> None:
+        """Show the true pile ("true") or the one the run knew from its scans ("scanned")."""
+        if kind not in PILE_SHOWN:
+            raise ValueError(f"pile shown: {kind!r}, not one of {', '.join(PILE_SHOWN)}")
+        self._actions.put(lambda: self._show_pile(kind))
+
+    def show_fan(self, shown: bool) -> None:
+        """Show or hide the scan fan and the hits of the last second."""
+        self._actions.put(lambda: self._show_fan(shown))
+
+    def _show_pile(self, kind: str) -> None:
+        if kind == self.pile_shown:
+            return
+        self.pile_shown = kind
+        with self.server.atomic():  # the pile shown now arrives as it stands at the current time
+            self.view.show_pile(kind)
+            self.view.show(self.time)
+            self.panel.show_scanner(kind, self.fan_shown)
+
+    def _show_fan(self, shown: bool) -> None:
+        if shown == self.fan_shown:
+            return
+        self.fan_shown = shown
+        with self.server.atomic():
+            self.view.show_fan(shown)
+            self.view.show(self.time)
+            self.panel.show_scanner(self.pile_shown, shown)
 
     def _toggle(self) -> None:
         if not self.playing and self.time >= self.end:

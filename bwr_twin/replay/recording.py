@@ -24,6 +24,7 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES, Machine, paper_to_world
 from bwr_twin.planning.follower import Stage
+from bwr_twin.replay.scans import Scans
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.surface import Surface, build_surface
@@ -33,7 +34,7 @@ if TYPE_CHECKING:
 
 # The sub-packages whose code decides a run (the replay's own code does not).
 _SIMULATION_CODE = tuple(PACKAGE / name for name in ("config", "model", "planning", "control", "sim", "stockpile",
-                                                      "results"))
+                                                      "sensing", "results"))
 
 
 @dataclass(frozen=True)
@@ -155,6 +156,7 @@ class Recording:
     reclaim_rate: np.ndarray | None = None  # (n,) t/h, with a stockpile
     pile: PileHistory | None = None  # the pile as it was dug, with a stockpile
     controller: str = ""  # the controller's type, as its scene names it: "fuzzy_model", "pid", ...
+    scans: Scans | None = None  # the run's laser scans, if its machine scanned the pile
 
     @property
     def q_error(self) -> np.ndarray:
@@ -202,10 +204,12 @@ class Recording:
             machine = Machine(scene["machine"]["mjcf"])
             pile_file = run_dir / PILE_FILE
             pile = PileHistory.read(pile_file, float(columns["time_s"][-1])) if pile_file.is_file() else None
+            scans = Scans.read(run_dir, *((pile.x, pile.y) if pile is not None else ()))
             run = {}
             if scene["trajectory"] is None:  # a bench reclaim's waypoints are the run's own
                 run = json.loads((run_dir / METRICS_FILE).read_text())["run"]
-            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile, run=run)
+            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile, run=run,
+                                     scans=scans)
         except (ValueError, OSError) as exc:
             raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
         except KeyError as exc:
@@ -230,14 +234,15 @@ class Recording:
             pile = reclaim.history or PileHistory.start_and_end(
                 reclaim.x, reclaim.y, reclaim.z_start, reclaim.z_end, float(result.time[-1]))
         return cls._from_columns(columns, result.scene.to_dict(), result.machine, title=result.scene.path.name,
-                                 pile=pile, run=result.metrics["run"])
+                                 pile=pile, run=result.metrics["run"], scans=Scans.of(getattr(result, "scan", None)))
 
     @classmethod
     def _from_columns(
         cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str,
-        pile: PileHistory | None = None, run: dict,
+        pile: PileHistory | None = None, run: dict, scans: Scans | None = None,
     ) -> Recording:
-        """`run`: metrics.json's run block (a bench reclaim's waypoints)."""
+        """`run`: metrics.json's run block (a bench reclaim's waypoints); `scans`: the run's, posed
+        here on its machine at its joint values."""
         from bwr_twin.results.rundir import column_name
 
         def joints(stem: str) -> np.ndarray:
@@ -269,9 +274,12 @@ class Recording:
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
             via_stages=stages,
         )
-        return cls(plan, joints("q_actual"), joints("qd_actual"), cp("actual"),
+        q_actual = joints("q_actual")
+        if scans is not None:
+            scans.attach(machine, plan.time, q_actual)
+        return cls(plan, q_actual, joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile,
-                   controller=str((scene.get("controller") or {}).get("type", "")))
+                   controller=str((scene.get("controller") or {}).get("type", "")), scans=scans)
 
 
 def read_recorded(path: Path) -> dict[str, np.ndarray]:

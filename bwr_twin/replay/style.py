@@ -10,6 +10,12 @@ TARGET_COLOUR = (220, 30, 30)
 VIA_COLOUR = (30, 30, 30)
 ORE_COLOUR = (112, 66, 44)
 GROUND_COLOUR = (205, 196, 178)
+# A laser scanner's: its fan green like a laser line, the rays that returned nothing paler, its hits
+# yellow over the ore, and the pile known from them a cool grey-blue, unlike any ore.
+FAN_COLOUR = (20, 200, 80)
+MISS_COLOUR = (150, 220, 170)
+HIT_COLOUR = (255, 225, 30)
+KNOWN_COLOUR = (95, 130, 170)
 # Each run's colour, in order: trail, chart lines, and its machine when painted in it. Far from
 # the desired path's blue, the target's red and the ore's brown.
 RUN_COLOURS = (ACTUAL_COLOUR, GHOST_COLOUR, (40, 160, 70), (170, 60, 200), (20, 170, 190), (120, 120, 120),

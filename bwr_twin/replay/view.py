@@ -7,7 +7,9 @@ side by side, each run has its own, in a row across the rail, spaced by what eac
 
 Meshes, paths and via points are sent once. An instant then costs, per shown run, one pose per
 moving rigid body and the tip of its trail, and per site the target's position and the pile's
-tiles dug since the last instant (bwr_twin.replay.pile); the caller wraps it in
+tiles dug since the last instant (bwr_twin.replay.pile); with a run that scanned, the fan and
+the cloud when a new scan came, and the scanned pile's tiles a new frame of it changed
+(bwr_twin.replay.scan_view); the caller wraps it in
 `server.atomic()` so that a frame arrives whole. The live replay and the HTML export share this
 code, so they show the same picture.
 """
@@ -23,6 +25,7 @@ from bwr_twin.replay.geometry import BodyPoser, visual_geoms
 from bwr_twin.replay.machine_view import MachineView, Paint, segments
 from bwr_twin.replay.pile import PileView
 from bwr_twin.replay.recording import Plan, Recording, decimate
+from bwr_twin.replay.scan_view import LIVE, ScanDrawing, ScanView
 from bwr_twin.replay.scenery import ASPECT, CAMERA_FOV, frame_view, stockpile
 from bwr_twin.replay.style import (  # noqa: F401  (the video draws with the same colours)
     ACTUAL_COLOUR,
@@ -60,10 +63,14 @@ def label_groups(points: np.ndarray, distance: float) -> dict[int, list[int]]:
 class Site:
     """Where a path is reclaimed, under the scene frame /sites/<k>: the MJCF's fixed geoms, the
     pile (the scene's, dug as the site's first run dug it; or scenery under the path, dug by
-    nothing), the desired path, the via points and the target."""
+    nothing), the desired path, the via points and the target; and if the site's first run
+    scanned the pile, its scans (bwr_twin.replay.scan_view), drawn as `drawing` says."""
 
-    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, name: str | None = None):
-        self.scene, self.prefix = scene, f"/sites/{k}"
+    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, name: str | None = None,
+                 drawing: ScanDrawing = LIVE):
+        self.scene, self.prefix, self.drawing = scene, f"/sites/{k}", drawing
+        self.scans: ScanView | None = None
+        self.pile_shown, self.fan_shown = "true", True
         self.frame = scene.add_frame(self.prefix, show_axes=False)
         machine = plan.machine
         poser = BodyPoser(machine)
@@ -128,15 +135,34 @@ class Site:
         self._path_nodes = nodes
 
     def attach(self, recording: Recording) -> None:
-        """The site's first run: its pile as it dug it, its path and via points at its own times."""
+        """The site's first run: its pile as it dug it, its scans, its path and via points at its
+        own times."""
         if self.pile is not None and recording.pile is not None:
             self.pile.attach(recording.pile)
+        if self.pile is not None and recording.scans is not None and self.scans is None:
+            self.scans = ScanView(self.scene, self.prefix, recording.scans, self.marker_radius, self.drawing)
         self.draw_path(recording.plan)
+
+    def show_pile(self, kind: str) -> None:
+        """Show the true pile ("true") or the scanned one ("scanned"), if the site's run scanned."""
+        if self.scans is None:
+            return
+        self.pile_shown = kind
+        self.pile.visible = kind == "true"
+        self.scans.known.visible = kind == "scanned"
+
+    def show_fan(self, shown: bool) -> None:
+        """Show or hide the scan fan and the hits, if the site's run scanned."""
+        if self.scans is not None:
+            self.fan_shown = self.scans.visible = shown
 
     def show(self, t: float, cp_desired: np.ndarray) -> None:
         self.target.position = cp_desired
-        if self.pile is not None:
+        both = self.drawing.both_piles
+        if self.pile is not None and (self.pile_shown == "true" or both):
             self.pile.show(t)
+        if self.scans is not None:
+            self.scans.show(t, fan=self.fan_shown, pile=self.pile_shown == "scanned" or both)
 
 
 class SceneView:
@@ -152,19 +178,22 @@ class SceneView:
         side_by_side: give each run its own site, in a row across the rail.
         panel_share: the part of the window a GUI panel covers on the right; the camera leaves it.
         aspect: the picture's width over its height.
+        scans: how much of a run's laser scans to draw (bwr_twin.replay.scan_view).
     """
 
     def __init__(self, server: viser.ViserServer, plans: Plan | Sequence[Plan], *, names: Sequence[str] = (),
-                 side_by_side: bool = False, panel_share: float = 0.0, aspect: float = ASPECT):
+                 side_by_side: bool = False, panel_share: float = 0.0, aspect: float = ASPECT,
+                 scans: ScanDrawing = LIVE):
         self.server = server
         plans = [plans] if isinstance(plans, Plan) else list(plans)
         self.plan = plans[0]
         scene = server.scene
         if side_by_side:
-            self.sites = [Site(scene, plan, k, names[k] if k < len(names) else None) for k, plan in enumerate(plans)]
+            self.sites = [Site(scene, plan, k, names[k] if k < len(names) else None, scans)
+                          for k, plan in enumerate(plans)]
             self.site_of = list(range(len(plans)))
         else:
-            self.sites, self.site_of = [Site(scene, plans[0], 0)], [0] * len(plans)
+            self.sites, self.site_of = [Site(scene, plans[0], 0, drawing=scans)], [0] * len(plans)
         paints = _paints(len(plans), len(self.sites), solid=0)
         self.machines = [MachineView(scene, plan, k, run_colour(k), paint) for k, (plan, paint) in
                          enumerate(zip(plans, paints))]
@@ -230,6 +259,21 @@ class SceneView:
 
     def set_visible(self, k: int, shown: bool) -> None:
         self.machines[k].visible = shown
+
+    @property
+    def scanning(self) -> bool:
+        """Whether a site draws a run's scans (its first run scanned its pile)."""
+        return any(site.scans is not None for site in self.sites)
+
+    def show_pile(self, kind: str) -> None:
+        """At every site whose run scanned, the true pile ("true") or the scanned one ("scanned")."""
+        for site in self.sites:
+            site.show_pile(kind)
+
+    def show_fan(self, shown: bool) -> None:
+        """At every site whose run scanned, show or hide the scan fan and the hits."""
+        for site in self.sites:
+            site.show_fan(shown)
 
     def show(self, t: float) -> None:
         """Pose every shown run's machine and trail, and every site's target and pile, for time t (s)."""
