@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from bwr_twin.config.scene import Scene
@@ -103,15 +104,31 @@ class RateInstruments:
         """Period k's readings of the true belt rate at the discharge (t/h) and the wheel's shaft power (W)."""
         scale = self.scale
         if scale is not None:
-            slot = k % len(self._belt)
-            self._belt[slot] = rate
-            weighed = self._belt[(k - self.delay_periods) % len(self._belt)] if k >= self.delay_periods else 0.0
-            reading = weighed + self._scale_noise.at(k) * (scale.noise[0] + scale.noise[1] * np.abs(weighed))
-            if not scale_frozen:
-                self.belt_scale += (reading - self.belt_scale) * self._smoothing
+            _weigh(k, self.delay_periods, rate, self._belt, self._scale_noise.at(k), scale.noise[0], scale.noise[1],
+                   self._smoothing, scale_frozen, self.belt_scale)
         motor = self.motor
         if motor is not None:
-            current = power * motor.amps_per_watt
-            self.wheel_current[:] = current + self._current_noise.at(k) * (motor.noise[0] + motor.noise[1]
-                                                                            * np.abs(current))
-            self.wheel_power[:] = self.wheel_current / motor.amps_per_watt
+            _draw(power, motor.amps_per_watt, self._current_noise.at(k), motor.noise[0], motor.noise[1],
+                  self.wheel_current, self.wheel_power)
+
+
+@numba.njit(cache=True)
+def _weigh(k, delay, rate, belt, normal, constant, share, smoothing, frozen, reading):  # pragma: no cover - compiled
+    """The belt scale's period k: the rates in transit (delay + 1 rows, a ring), the one that
+    reaches the scale with its noise, through the filter unless frozen."""
+    rows = belt.shape[0]
+    belt[k % rows] = rate
+    for r in range(len(rate)):
+        weighed = belt[(k - delay) % rows, r] if k >= delay else 0.0
+        measured = weighed + normal[r] * (constant + share * abs(weighed))
+        if not frozen:
+            reading[r] += (measured - reading[r]) * smoothing
+
+
+@numba.njit(cache=True)
+def _draw(power, amps_per_watt, normal, constant, share, current, reported):  # pragma: no cover - compiled
+    """The wheel motor's current for its shaft power, with its noise, and the power the drive reports from it."""
+    for r in range(len(power)):
+        amps = power[r] * amps_per_watt
+        current[r] = amps + normal[r] * (constant + share * abs(amps))
+        reported[r] = current[r] / amps_per_watt
