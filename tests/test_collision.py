@@ -125,3 +125,43 @@ def test_a_boom_lowered_into_the_pile_is_reported_with_its_time(boom_into_pile):
 
 def test_scenes_without_a_pile_have_no_collision_object():
     assert "collision" not in simulate(load_scene(SCENES / "pid_paper.toml")).metrics
+
+
+@pytest.fixture(scope="module")
+def interlocked():
+    return simulate(load_scene(SCENES / "heavy_boom_interlocked.toml"))
+
+
+def test_the_interlock_stops_the_boom_short_of_the_pile_in_the_period_it_decides(interlocked, boom_into_pile):
+    """The same error with the interlock: it warns, slows and stops in that order, each as the
+    predicted clearance crosses its zone; no contact, the boom's least clearance at least the stop
+    zone's metre; the reference stands still from the period of the stop on (no period late)."""
+    collision = interlocked.metrics["collision"]
+    assert collision["contacts"] == [] and boom_into_pile.metrics["collision"]["contacts"]
+    warn, slow, stop = collision["interventions"]
+    assert [warn["kind"], slow["kind"], stop["kind"]] == ["warn", "slow", "stop"]
+    zones = interlocked.scene.interlock
+    for event, edge in ((warn, zones.warn), (slow, zones.slow), (stop, zones.stop)):
+        assert event["part"] == "boom" and edge - 0.01 < event["predicted_clearance_m"] <= edge
+    assert collision["pile"]["boom"]["clearance_m"] >= zones.stop
+    held = interlocked.time >= stop["time_s"] - 1e-9
+    np.testing.assert_array_equal(interlocked.q_desired[held], np.repeat(interlocked.q_desired[held][:1],
+                                                                         held.sum(), axis=0))
+    np.testing.assert_array_equal(interlocked.qd_desired[held], 0.0)
+    before = np.flatnonzero(interlocked.time < stop["time_s"] - 1e-9)[-1]
+    assert np.abs(interlocked.qd_desired[before]).max() > 0  # still moving the record sample before
+    # Until the first warning the run follows the path as the run without the interlock does.
+    early = interlocked.time < warn["time_s"] - 1e-9
+    np.testing.assert_array_equal(interlocked.q[early], boom_into_pile.q[early])
+
+
+def test_an_interlock_is_refused_where_it_cannot_act(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('extends = "heavy_boom_interlocked"\n[interlock]\nslow = 3.5\n')
+    with pytest.raises(Exception, match=r"\[interlock\] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop "
+                                        r"1.0, slow 3.5, warn 3.0"):
+        load_scene(path)
+    path.write_text('extends = "pid_paper"\n[interlock]\nwarn = 3.0\nslow = 2.0\nstop = 1.0\n')
+    with pytest.raises(Exception, match=r"\[interlock\] keeps the machine clear of the pile, but the scene has "
+                                        r"no \[stockpile\]"):
+        load_scene(path)

@@ -48,7 +48,7 @@ class PileClearance:
         self._joints = np.array([s.mount.joints for s in checked], dtype=np.int64)
         self._anchor = checked[0].mount.anchor if checked else np.zeros((3, 3))
         self._axis = checked[0].mount.axis if checked else np.zeros((3, 3))
-        self._levers = _levers(checked)
+        self.levers = _levers(checked)
         self.now = np.full((runs, n), WATCH)
         self._measured = np.full((runs, n), WATCH)  # each shape's last measure
         self._moved = np.full(runs, np.inf)  # m the machine may have moved since: measure at once
@@ -65,7 +65,7 @@ class PileClearance:
         the piles' heights (runs, ny, nx) as dug until now; only the `runs` given (None: all)."""
         order = self._all if runs is None else runs
         self.periods[order] += 1
-        if not _clearances(heights, self._x0, self._y0, self._spacing, order, q, qd, self.period, self._levers,
+        if not _clearances(heights, self._x0, self._y0, self._spacing, order, q, qd, self.period, self.levers,
                            self._kinds, self._halves, self._positions, self._rotations, self._joints, self._anchor,
                            self._axis, WATCH, RECHECK, NEAR, self._moved, self._measured, self.now, self.checks):
             return  # nothing measured: nothing nearer than before

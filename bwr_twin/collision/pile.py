@@ -34,10 +34,10 @@ def shape_clearance(heights, x0, y0, spacing, kind, half, position, rotation, wa
         else:
             reach[a] = abs(rotation[a, 2]) * half[2] + half[0]
     lowest = position[2] - reach[2]
-    c0 = max(int(math.floor((position[0] - reach[0] - watch - x0) / spacing)), 0)
-    c1 = min(int(math.ceil((position[0] + reach[0] + watch - x0) / spacing)), nx - 1)
-    r0 = max(int(math.floor((position[1] - reach[1] - watch - y0) / spacing)), 0)
-    r1 = min(int(math.ceil((position[1] + reach[1] + watch - y0) / spacing)), ny - 1)
+    c0 = max(math.floor((position[0] - reach[0] - watch - x0) / spacing), 0)
+    c1 = min(math.ceil((position[0] + reach[0] + watch - x0) / spacing), nx - 1)
+    r0 = max(math.floor((position[1] - reach[1] - watch - y0) / spacing), 0)
+    r1 = min(math.ceil((position[1] + reach[1] + watch - y0) / spacing), ny - 1)
     best = watch
     for r in range(r0, r1 + 1):
         py = y0 + r * spacing - position[1]
@@ -57,8 +57,7 @@ def shape_clearance(heights, x0, y0, spacing, kind, half, position, rotation, wa
             else:
                 t = min(max(lz, -half[2]), half[2])
                 distance = math.sqrt(lx * lx + ly * ly + (lz - t) ** 2) - half[0]
-            if distance < best:
-                best = distance
+            best = min(best, distance)
     # Below the surface: the underside's points along the shape's longest axis.
     axis = 2
     if kind == BOX:

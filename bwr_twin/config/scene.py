@@ -206,6 +206,24 @@ class RateControlSection:
 
 
 @dataclass(frozen=True)
+class InterlockSection:
+    """`[interlock]`: the built-in anti-collision interlock (docs/anticollision.md). From each
+    collision shape's clearance to the pile the automation knows, less the distance the machine
+    would cover before it stands (its speed for `reaction` s, then braking at `deceleration`),
+    it warns within `warn` m, slows the path to `slow_share` of its speed within `slow` m and
+    stops it within `stop` m, held until the run ends; it leaves a warning or a slowdown once the
+    predicted clearance is `hysteresis` m beyond the zone's edge."""
+
+    warn: float  # m of predicted clearance
+    slow: float  # m
+    stop: float  # m
+    reaction: float = 0.5  # s from a decision to the drives acting on it
+    deceleration: float = 0.05  # m/s^2 the drives brake the shapes at
+    slow_share: float = 0.3  # of the path's speed, in the slow zone
+    hysteresis: float = 0.5  # m beyond a zone's edge the predicted clearance must reach to leave it
+
+
+@dataclass(frozen=True)
 class StopSection:
     """`[reclaim.stop]`: when the reclaim ends; exactly one key."""
 
@@ -258,6 +276,7 @@ class Scene:
     digging: DiggingSection | None = None
     sensing: SensingSection = field(default_factory=SensingSection)
     faults: tuple[FaultSection, ...] = ()  # [[faults]]: what fails, when, for how long (docs/sensing.md)
+    interlock: InterlockSection | None = None  # the anti-collision interlock (docs/anticollision.md)
 
     @property
     def controller_mjcf(self) -> Path:
@@ -629,6 +648,7 @@ def _check_rules(scene: Scene) -> None:
     if scene.reclaim is not None:
         _check_reclaim(scene)
     _check_sensing(scene)
+    _check_interlock(scene)
     runs_until = scene.trajectory.via_points[-1].t if scene.trajectory is not None else None
     check_faults(p, scene.faults, runs_until)
     files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
@@ -712,6 +732,27 @@ def _check_sensing(scene: Scene) -> None:
     if survey is not None and not survey.waypoints:
         raise SceneError(f"{p}: 'reclaim.survey.waypoints' needs at least one waypoint [travel m, slew deg, "
                          "luff deg]")
+
+
+def _check_interlock(scene: Scene) -> None:
+    p, lock = scene.path, scene.interlock
+    if lock is None:
+        return
+    if scene.stockpile is None:
+        raise SceneError(f"{p}: [interlock] keeps the machine clear of the pile, but the scene has no [stockpile]")
+    if scene.reclaim is not None:
+        raise SceneError(f"{p}: [interlock] slows and stops a [path]'s reference; a [reclaim]'s is not yet "
+                         "interlocked: remove [interlock]")
+    if not 0 < lock.stop < lock.slow < lock.warn:
+        raise SceneError(f"{p}: [interlock] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop {lock.stop}, "
+                         f"slow {lock.slow}, warn {lock.warn}")
+    for key in ("reaction", "deceleration"):
+        if not getattr(lock, key) > 0:
+            raise SceneError(f"{p}: 'interlock.{key}' must be > 0, got {getattr(lock, key)}")
+    if not lock.hysteresis >= 0:
+        raise SceneError(f"{p}: 'interlock.hysteresis' must be >= 0 m, got {lock.hysteresis}")
+    if not 0 < lock.slow_share < 1:
+        raise SceneError(f"{p}: 'interlock.slow_share' must lie in (0, 1), got {lock.slow_share}")
 
 
 def _check_stockpile(scene: Scene) -> None:

@@ -41,6 +41,10 @@ def summary_table(metrics: dict) -> str:
     if collision is not None:
         lines.append(clearance_line(collision))
         lines += [f"warning: {contact_line(contact)}" for contact in collision["contacts"]]
+        if collision["interventions"]:
+            lines.append("interlock: " + ", ".join(
+                f"{i['kind']} at {i['time_s']:.2f} s ({i['part']} {i['predicted_clearance_m']:.2f} m predicted)"
+                for i in collision["interventions"]))
     for fault in metrics.get("faults", ()):
         lines.append(fault_line(fault))
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]

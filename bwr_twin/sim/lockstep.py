@@ -23,12 +23,13 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
+from bwr_twin.collision.interlock import ZoneInterlock
 from bwr_twin.collision.monitor import PileClearance
 from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
-from bwr_twin.errors import BwrError, SimulationError
+from bwr_twin.errors import BwrError, SceneError, SimulationError
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import rate_instruments, rate_loop_reads_instruments
@@ -71,6 +72,7 @@ def lockstep_key(scene: Scene) -> tuple:
         scene.stockpile,
         scene.sensing,
         scene.faults,
+        scene.interlock,
     )
 
 
@@ -170,6 +172,7 @@ class Lockstep:
             reclaim's rate control reads them unless [sensing] rate_signals is "exact".
         collision: the machine's collision shapes against the runs' piles
             (bwr_twin.collision.monitor), or None without a pile or shapes.
+        interlock: the anti-collision interlock (bwr_twin.collision.interlock), or None.
         faults: the scene's scheduled faults (bwr_twin.sensing.faults); `faults.acting(k)` says
             which act in period k.
     """
@@ -217,6 +220,14 @@ class Lockstep:
         check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
         self.collision = (PileClearance(machine.collision_shapes, surface, runs, period)
                           if surface is not None and machine.collision_shapes else None)
+        self.interlock = None
+        if scene.interlock is not None:
+            if not machine.collision_shapes:
+                raise SceneError(f"{scene.path}: [interlock] keeps the machine's collision shapes clear of the pile, "
+                                 f"but {machine.path.name} has none (geoms 'collision_<part>' in group 5, "
+                                 "docs/anticollision.md)")
+            self.interlock = ZoneInterlock(scene.interlock, machine.collision_shapes, surface, runs, period,
+                                           tracking.rows)
         nan = np.full(runs, np.nan)  # the readings of a machine without instruments
         self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
                                      if self.instruments is not None else (nan, nan))
@@ -225,7 +236,7 @@ class Lockstep:
         self._observe = observe
         self._observer = observer = Observer(
             runs, self.samples, period, round(sim.record_period / period), machine,
-            path=tracking.rows if tracking.shared else None, wind_mean=parameters.wind_speed,
+            path=tracking.rows if tracking.shared and self.interlock is None else None, wind_mean=parameters.wind_speed,
             reclaim=self.reclaim is not None)
         observer.q[0], observer.qd[0] = plant.qpos, plant.qvel  # the first period's start
         if not observe:  # one row, whose end state is the next period's start
@@ -264,7 +275,11 @@ class Lockstep:
         return None if self.reclaim is None else _read_only(self.reclaim.rate)
 
     def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)."""
+        """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)
+        (each run's own under an interlock, which decides it as the period is measured)."""
+        if self.interlock is not None:
+            lock = self.interlock
+            return lock.q, lock.qd, lock.qdd
         return self.tracking.now()
 
     def controller_context(self) -> ControllerContext:
@@ -284,6 +299,9 @@ class Lockstep:
         self._encoders.measure(row.q, row.qd, row.q_measured, row.qd_measured)
         if self.faults.active:  # the controller sees what the faulty encoders show
             self.faults.measured(self.k, row.q_measured, row.qd_measured)
+        if self.interlock is not None:  # ... and so does the interlock, which decides this period's reference
+            known = self.scanning.survey.z if self.scanning is not None else self.reclaim.cutter.heights
+            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known)
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 
@@ -323,8 +341,10 @@ class Lockstep:
         plant.step(applied, disturbance, row.gust)
         plant.read(row.q_next, row.qd_next, row.drive_force)
         if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's
-            for rows, value in zip(row.reference, tracking.now()):
+            for rows, value in zip(row.reference, self.reference_now()):
                 rows[...] = value
+        if self.interlock is not None:
+            self.interlock.advance()
         controller = self._controller
         for name, rows in row.controller:
             rows[...] = getattr(controller, name)
@@ -392,6 +412,8 @@ class Lockstep:
                 run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
             if self.collision is not None:
                 run_metrics["collision"] = self.collision.metrics(run)
+                if self.interlock is not None:
+                    run_metrics["collision"]["interventions"] = self.interlock.interventions[run]
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),
