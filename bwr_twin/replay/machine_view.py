@@ -15,6 +15,7 @@ import viser
 
 from bwr_twin.replay.geometry import BodyPoser, VisualGeom, body_vertices, visual_geoms
 from bwr_twin.replay.recording import Instant, Plan, Recording, decimate
+from bwr_twin.replay.rooted import Rooted
 from bwr_twin.replay.style import GHOST_OPACITY, LINE_WIDTH, PATH_STEP, rgb
 
 TRAIL_CHUNK = 20  # trail segments per scene node; only the unfinished chunk is re-sent
@@ -29,7 +30,7 @@ def segments(points: np.ndarray) -> np.ndarray:
     return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
 
 
-class MachineView:
+class MachineView(Rooted):
     """Run k's machine at the start pose of `plan`, painted as `paint` says (`MachineView.paint`)
     with `colour`, its trail's; `attach` adds the recording's trail, `show` poses a time of it."""
 
@@ -93,14 +94,6 @@ class MachineView:
         if kind == "model":
             return rgb(geom.rgba), geom.rgba[3] if geom.rgba[3] < 1.0 else None
         return self.colour, opacity if kind == "translucent" else None
-
-    @property
-    def visible(self) -> bool:
-        return self.root.visible
-
-    @visible.setter
-    def visible(self, shown: bool) -> None:
-        self.root.visible = shown
 
     def attach(self, recording: Recording) -> None:
         """Add the recording's CP trail in chunks, each sent once and then only shown or hidden."""

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bwr_twin.replay.rooted import Rooted
 from bwr_twin.stockpile.history import PileHistory
 
 if TYPE_CHECKING:  # the video renders the pile without viser
@@ -25,7 +26,7 @@ ORE_COLOUR = (112, 66, 44)  # weathered iron ore
 CUT_COLOUR = (230, 110, 30)  # a fresh face: bright ore, seen from afar
 
 
-class PileView:
+class PileView(Rooted):
     """The pile on a viser scene at its start; once a run's history is attached, `show` poses it
     for a time of that history."""
 
@@ -48,14 +49,6 @@ class PileView:
                 rows = slice(r0, min(r0 + TILE, len(self._rows) - 1) + 1)
                 cols = slice(c0, min(c0 + TILE, len(self._cols) - 1) + 1)
                 self._tiles.append(_Tile(scene, f"{name}/{r0}_{c0}", rows, cols, self._xy, self._shown, self._start))
-
-    @property
-    def visible(self) -> bool:
-        return self.root.visible
-
-    @visible.setter
-    def visible(self, shown: bool) -> None:
-        self.root.visible = shown
 
     def attach(self, history: PileHistory) -> None:
         self.dug = DugHeights(history)

@@ -22,6 +22,7 @@ import numpy as np
 import viser
 
 from bwr_twin.replay.pile import TILE, DugHeights, display_step, samples
+from bwr_twin.replay.rooted import Rooted
 from bwr_twin.replay.scans import KNOWN_FRAME_PERIOD, Scans
 from bwr_twin.replay.style import FAN_COLOUR, HIT_COLOUR, KNOWN_COLOUR, MISS_COLOUR
 
@@ -75,7 +76,7 @@ def scanned_note(scans: Scans | None, period: float) -> str:
             f"cells it never saw are not drawn.{planned}")
 
 
-class ScanView:
+class ScanView(Rooted):
     """A run's `scans` on `scene` under the site frame `prefix`, drawn as `drawing` says: the fan,
     the misses and the cloud under `{prefix}/scan`, its hits sized for the site's `marker_radius`
     (m), and the scanned pile under `{prefix}/scanned` on the true pile's display grid."""
@@ -102,14 +103,6 @@ class ScanView:
         self.fan: tuple[int, ...] = ()  # the scans the fan draws
         self._cloud: tuple[int, int] = (0, 0)  # the scans the cloud draws, [begin, end)
         self._updated = -math.inf  # run time of the last update of fan and cloud
-
-    @property
-    def visible(self) -> bool:
-        return self.root.visible
-
-    @visible.setter
-    def visible(self, shown: bool) -> None:
-        self.root.visible = shown
 
     def show(self, t: float, *, fan: bool = True, pile: bool = True) -> None:
         """The fan and cloud (if `fan`) and the scanned pile (if `pile`) at time t (s)."""
@@ -141,7 +134,7 @@ class ScanView:
         self._updated = t
 
 
-class KnownPileView:
+class KnownPileView(Rooted):
     """The scanned pile `history` (a PileHistory that starts unknown) on the true pile's display
     grid, in tiles of TILE display cells: a tile's mesh holds the display cells whose corners
     are all known, and is sent again when a frame changed one of its samples."""
@@ -160,14 +153,6 @@ class KnownPileView:
                 rows = slice(r0, min(r0 + TILE, len(self._rows) - 1) + 1)
                 cols = slice(c0, min(c0 + TILE, len(self._cols) - 1) + 1)
                 self.tiles.append(_KnownTile(scene, f"{name}/{r0}_{c0}", rows, cols, self._xy, self._shown))
-
-    @property
-    def visible(self) -> bool:
-        return self.root.visible
-
-    @visible.setter
-    def visible(self, shown: bool) -> None:
-        self.root.visible = shown
 
     @property
     def z(self) -> np.ndarray:
