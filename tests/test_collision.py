@@ -165,3 +165,15 @@ def test_an_interlock_is_refused_where_it_cannot_act(tmp_path):
     with pytest.raises(Exception, match=r"\[interlock\] keeps the machine clear of the pile, but the scene has "
                                         r"no \[stockpile\]"):
         load_scene(path)
+
+
+def test_the_interlock_sees_what_the_encoders_show():
+    """A luff encoder stuck before the boom nears the pile: the PID, seeing no motion, drives the
+    boom down, and the interlock, reading the same frozen encoder, believes it stands where it was:
+    no intervention, and the twin reports the contact it could not prevent."""
+    stuck = {"faults": [{"kind": "encoder_stuck", "axis": "luff", "start": 120.0}]}
+    result = simulate(load_scene(SCENES / "heavy_boom_interlocked.toml", stuck))
+    collision = result.metrics["collision"]
+    assert collision["interventions"] == []
+    (contact,) = collision["contacts"]
+    assert contact["bodies"] == ["boom", "pile"] and contact["time_s"] > 120.0 and contact["end_s"] is None
