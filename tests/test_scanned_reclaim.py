@@ -140,16 +140,15 @@ def test_a_rate_loop_without_its_instrument_is_refused(tmp_path):
 
 @pytest.fixture(scope="module")
 def paper_runs():
-    """pid_paper's first 60 s, without faults and with one of each kind that acts on the loop."""
+    """pid_paper without faults and with one of each kind that acts on the loop."""
     faults = [
         {"kind": "encoder_stuck", "axis": "slew", "start": 10.0, "duration": 5.0},
         {"kind": "drive_trip", "axis": "luff", "start": 20.0, "duration": 2.0},
         {"kind": "encoder_dropout", "axis": "travel", "start": 30.0, "duration": 1.0},
         {"kind": "late_inputs", "periods": 10, "start": 40.0, "duration": 5.0},
         {"kind": "encoder_drift", "axis": "luff", "rate": 0.1, "start": 50.0, "duration": 5.0},
+        {"kind": "encoder_noise", "axis": "travel", "sigma": 0.05, "start": 60.0, "duration": 20.0},
     ]
-    base = {"path.via_points": None}
-    del base["path.via_points"]
     clean = simulate(load_scene(SCENES / "pid_paper.toml"))
     faulty = simulate(load_scene(SCENES / "pid_paper.toml", {"faults": faults}))
     return clean, faulty
@@ -174,9 +173,14 @@ def test_each_fault_acts_on_what_the_controller_sees_and_is_reported(paper_runs)
     drift = np.flatnonzero(_window(faulty, 50, 55))
     offset = faulty.q_measured[drift, 2] - faulty.q[drift, 2]
     np.testing.assert_allclose(offset, np.radians(0.1) * (faulty.time[drift] - 50.0), atol=0.00076)
+    noisy = np.flatnonzero(_window(faulty, 60, 80))
+    noise = faulty.q_measured[noisy, 0] - faulty.q[noisy, 0]
+    assert np.std(noise) == pytest.approx(0.05, rel=0.15) and abs(np.mean(noise)) < 0.015
+    quiet = np.flatnonzero(_window(faulty, 80, 90))
+    assert np.abs(faulty.q_measured[quiet, 0] - faulty.q[quiet, 0]).max() <= 0.00153 / 2 + 1e-12  # quantised only
     report = faulty.metrics["faults"]
     assert [f["kind"] for f in report] == ["encoder_stuck", "drive_trip", "encoder_dropout", "late_inputs",
-                                           "encoder_drift"]
+                                           "encoder_drift", "encoder_noise"]
     assert report[0]["axis"] == "slew" and (report[0]["start_s"], report[0]["end_s"]) == (10.0, 15.0)
     assert report[1]["error_max_during"]["luff_deg"] > clean.metrics["luff"]["position_error_rms"]
     assert "faults" not in clean.metrics
