@@ -177,3 +177,11 @@ def test_the_interlock_sees_what_the_encoders_show():
     assert collision["interventions"] == []
     (contact,) = collision["contacts"]
     assert contact["bodies"] == ["boom", "pile"] and contact["time_s"] > 120.0 and contact["end_s"] is None
+
+
+def test_the_batch_summary_has_the_least_clearance_and_the_contacts(boom_into_pile, interlocked):
+    from bwr_twin.batch.report import _flat_metrics
+
+    hit, kept = _flat_metrics(boom_into_pile.metrics), _flat_metrics(interlocked.metrics)
+    assert hit["collision.contacts"] == 1 and hit["collision.clearance_min_m"] == pytest.approx(-4.64, abs=0.01)
+    assert kept["collision.contacts"] == 0 and kept["collision.clearance_min_m"] >= 1.0
