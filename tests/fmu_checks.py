@@ -3,6 +3,9 @@ importer's process: it loads and unloads pythonfmu's library as Simulink or OMSi
 
     python tests/fmu_checks.py FMU reset PERIODS      traces before and after fmi2Reset, as JSON
     python tests/fmu_checks.py FMU bad-step           a step of 1.5 periods, then a whole one
+    python tests/fmu_checks.py FMU outputs PERIODS NAME...
+                                                      the named Real outputs after each of PERIODS
+                                                      steps of one period, the setpoints at 0
     python tests/fmu_checks.py FMU trim PERIODS CHUNK [TRIM]
                                                       a bench reclaim stepped CHUNK periods at a time, its
                                                       slew trimmed by TRIM (else the scene's rate loop):
@@ -91,6 +94,14 @@ def main(path: str, check: str, *arguments: str) -> None:
                 break
             velocity.append(fmu.getReal([refs["Slew.ReferenceVelocity"]])[0])
         result = {"slew_velocity": velocity, "refused": refused}
+    elif check == "outputs":
+        periods, names = int(arguments[0]), arguments[1:]
+        period = fmu.getReal([refs["ControlPeriod"]])[0]
+        values = []
+        for k in range(periods):  # the setpoints left at 0
+            fmu.doStep(currentCommunicationPoint=k * period, communicationStepSize=period)
+            values.append(fmu.getReal([refs[name] for name in names]))
+        result = {"values": values}
     else:
         raise SystemExit(f"unknown check {check!r}")
     fmu.terminate()

@@ -18,12 +18,13 @@ import zipfile
 
 import numpy as np
 import pytest
-from conftest import ROOT, write_short_scene
+from conftest import ROOT, SCENES, write_short_scene
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 from test_serve import Launched, pid_session
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.serve.twin import Twin
 from bwr_twin.sim.lockstep import Lockstep
 
 PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
@@ -153,11 +154,24 @@ def test_bad_export_requests_get_one_line_and_leave_files_alone(case, short_scen
     assert sorted(p.name for p in tmp_path.iterdir()) == ["theirs.fmu"]
 
 
-def test_a_scene_that_digs_publishes_its_reclaim_rate(tmp_path):
+def test_a_scene_that_digs_publishes_its_reclaim_rate_and_instruments(tmp_path):
+    """The heavy machine's belt scale and wheel current are outputs too, each period's reading the
+    twin's own in process, bit for bit (the setpoints at 0: the boom sags, the wheel turns empty)."""
     out = tmp_path / "dig.fmu"
     python("-m", "bwr_twin.export", "fmu", "heavy_dig_pile", "--out", out)
     variables = {v.name: v for v in read_model_description(str(out)).modelVariables}
-    assert variables["ReclaimRate"].causality == "output" and variables["ReclaimRate"].unit == "t/h"
+    for name, unit in (("ReclaimRate", "t/h"), ("BeltScale", "t/h"), ("WheelCurrent", "A")):
+        assert variables[name].causality == "output" and variables[name].unit == unit
+    names = ("ReclaimRate", "BeltScale", "WheelCurrent")
+    done = python(ROOT / "tests" / "fmu_checks.py", out, "outputs", 60, *names)
+    fmpy_values = json.loads(done.stdout.strip().splitlines()[-1])["values"]
+    twin = Twin(load_scene(SCENES / "heavy_dig_pile.toml"))
+    expected = []
+    for _ in range(60):
+        twin.advance(np.zeros(3))
+        expected.append([twin.reclaim_rate(), twin.belt_scale(), twin.wheel_current()])
+    assert fmpy_values == expected
+    assert len({row[1] for row in expected}) > 1 and all(row[2] > 0 for row in expected)  # the noise, the idle wheel
     with zipfile.ZipFile(out) as archive:
         packed = archive.read("resources/scene.toml").decode()
     assert "bwr_heavy.xml" in packed and "/" not in packed.split("mjcf = ")[1].split("\n")[0].strip('"')

@@ -11,7 +11,8 @@ address space names them:
   reclaim, `SlewSpeedTrim` with `SlewSpeedTrimFromInput`, the importer's rate loop in place of the
   scene's;
 - outputs per axis: encoder position and velocity, the reference's position, velocity and
-  acceleration, the drive force applied, the limit switch; `ReclaimRate` where the scene digs;
+  acceleration, the drive force applied, the limit switch; `ReclaimRate` where the scene digs,
+  `BeltScale` and `WheelCurrent` where its machine has them;
 - parameters read once, on leaving initialisation: the disturbance seed, amplitudes and hold time,
   and the encoders' resolution;
 - `ControlPeriod`: a communication step is a whole number of these, anything else is refused.
@@ -33,6 +34,8 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.model.spec import compile_model
+from bwr_twin.sensing.instruments import read_instruments
 from bwr_twin.serve.twin import MEASURED, Twin
 from bwr_twin.sim.plant import mujoco_warnings
 
@@ -47,7 +50,7 @@ UNITS = {
     "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2},
     "N": {"kg": 1, "m": 1, "s": -2}, "N.m": {"kg": 1, "m": 2, "s": -2},
-    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600}, "1": {},
+    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600}, "A": {"A": 1}, "1": {},
 }
 
 
@@ -71,7 +74,11 @@ OUTPUTS = (
 )
 assert [s.name for s in OUTPUTS] == [*MEASURED, "DriveApplied"], "in the order the twin gives them"
 SWITCHES = Signal("AtLimit", None, "limit switch: the joint at or beyond its operating envelope or end stop")
-RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, as the belt scale sees it", False)
+RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, on the belt at the discharge", False)
+# The machine's instruments, where its MJCF describes them (docs/sensing.md): late and noisy.
+BELT_SCALE = Signal("BeltScale", "t/h", "the belt scale's reading: the rate the belt transport delay ago, "
+                    "with the scale's noise and filter", False)
+WHEEL_CURRENT = Signal("WheelCurrent", "A", "the wheel motor's current as its drive measures it", False)
 # A bench reclaim's rate loop, replaceable by the importer's: its trim, and whether it is used.
 TRIM = Signal("SlewSpeedTrim", "1", "the bench plan's slew speed law times this, within the scene's "
               "trim_limits, while SlewSpeedTrimFromInput is true", False)
@@ -151,9 +158,16 @@ class BwrReclaimer(Fmi2Slave):
                                            variability=Fmi2Variability.discrete, description=SWITCHES.meaning,
                                            getter=lambda i=i: self._twin.at_limit[i]))
         self._rate_ref = self._trim_ref = None  # their value references, in the scenes that have them
+        self._instrument_refs: list[tuple[int, str]] = []  # (value reference, the twin's method)
         if self._base.stockpile is not None:
             self._rate_ref = self._stored(RECLAIM_RATE.name, RECLAIM_RATE.unit, RECLAIM_RATE.meaning,
                                           Fmi2Causality.output)
+            mjcf = self._base.machine.mjcf
+            scale, motor = read_instruments(compile_model(mjcf), mjcf)
+            for signal, present, method in ((BELT_SCALE, scale, "belt_scale"), (WHEEL_CURRENT, motor, "wheel_current")):
+                if present is not None:
+                    ref = self._stored(signal.name, signal.unit, signal.meaning, Fmi2Causality.output)
+                    self._instrument_refs.append((ref, method))
         if self._base.reclaim is not None:
             self._trim_ref = self._stored(TRIM.name, TRIM.unit, TRIM.meaning, Fmi2Causality.input)
             self._inputs.add(self._trim_ref)
@@ -271,6 +285,8 @@ class BwrReclaimer(Fmi2Slave):
         now[self._outputs] = chain(*twin.measured, twin.drive_applied())  # OUTPUTS' (3,) lists, end to end
         if self._rate_ref is not None:
             now[self._rate_ref] = twin.reclaim_rate()
+            for ref, method in self._instrument_refs:
+                now[ref] = getattr(twin, method)()
 
     def exit_initialization_mode(self):
         self._build()  # the parameters as the importer left them

@@ -113,12 +113,11 @@ class Twin:
         """The readings of the run's instruments, scanners and faults: only those it has."""
         loop, found = self.loop, {}
         instruments = loop.instruments
-        if instruments is not None:  # the readings of the last period; none before the first
-            started = loop.k > 0
+        if instruments is not None:
             if instruments.scale is not None:
-                found["BeltScale"] = float(instruments.belt_scale[0]) if started else 0.0
+                found["BeltScale"] = self.belt_scale()
             if instruments.motor is not None:
-                found["WheelCurrent"] = float(instruments.wheel_current[0]) if started else 0.0
+                found["WheelCurrent"] = self.wheel_current()
         if loop.scanning is not None:
             found["Scans"] = tuple(latest_scan(log) for log in loop.scanning.logs)
         if loop.faults.faults:  # the period of SimTime: at the path's end, the last one advanced
@@ -128,6 +127,14 @@ class Twin:
     def drive_applied(self) -> list[float]:
         """The forces the drives applied over the last period (N, N m); zero before the first."""
         return self.loop.drive_force[0].tolist() if self.loop.k > 0 else [0.0, 0.0, 0.0]
+
+    def belt_scale(self) -> float:
+        """The belt scale's reading of the last period, t/h (late and noisy); zero before the first."""
+        return float(self.loop.instruments.belt_scale[0]) if self.loop.k > 0 else 0.0
+
+    def wheel_current(self) -> float:
+        """The wheel motor's current of the last period, A, as its drive measures it; zero before the first."""
+        return float(self.loop.instruments.wheel_current[0]) if self.loop.k > 0 else 0.0
 
     def reclaim_rate(self) -> float:
         """What the wheel reclaimed over the last period, t/h; zero before the first or without a stockpile."""
