@@ -185,3 +185,46 @@ def test_the_batch_summary_has_the_least_clearance_and_the_contacts(boom_into_pi
     hit, kept = _flat_metrics(boom_into_pile.metrics), _flat_metrics(interlocked.metrics)
     assert hit["collision.contacts"] == 1 and hit["collision.clearance_min_m"] == pytest.approx(-4.64, abs=0.01)
     assert kept["collision.contacts"] == 0 and kept["collision.clearance_min_m"] >= 1.0
+
+
+ENGINEERS_INTERLOCK = '''
+import numpy as np
+from bwr_twin.collision.interlock import Interlock
+
+
+class StopAtTwoMetres(Interlock):
+    """Stops for good when any shape comes within 2.5 m of the pile it knows, no prediction."""
+
+    def __init__(self, settings, runs, period, parts, levers):
+        super().__init__(settings, runs, period, parts, levers)
+        self.stopped = np.zeros(runs, dtype=bool)
+
+    def pace(self, time, q_measured, qd_measured, clearance):
+        newly = (clearance.min(axis=1) < 2.5) & ~self.stopped
+        for run in np.flatnonzero(newly):
+            self.interventions[run].append({"kind": "stop", "time_s": time})
+        self.stopped |= newly
+        return np.where(self.stopped, 0.0, 1.0)
+
+
+class Runaway(Interlock):
+    def pace(self, time, q_measured, qd_measured, clearance):
+        return np.full(len(q_measured), 2.0)
+'''
+
+
+def test_an_engineer_s_interlock_replaces_the_built_in(tmp_path):
+    (tmp_path / "my_interlock.py").write_text(ENGINEERS_INTERLOCK)
+    scene = tmp_path / "mine.toml"
+    scene.write_text(f'extends = "{SCENES / "heavy_boom_interlocked.toml"}"\n[interlock]\n'
+                     'type = "my_interlock.py:StopAtTwoMetres"\n')
+    result = simulate(load_scene(scene))
+    collision = result.metrics["collision"]
+    (stop,) = collision["interventions"]
+    assert stop["kind"] == "stop" and collision["contacts"] == []
+    assert collision["pile"]["boom"]["clearance_m"] > 2.0  # stopped at 2.5 m, less its braking
+    scene.write_text(f'extends = "{SCENES / "heavy_boom_interlocked.toml"}"\n[interlock]\n'
+                     'type = "my_interlock.py:Runaway"\n')
+    with pytest.raises(Exception, match=r"mine.toml: interlock .*my_interlock.py:Runaway: pace\(\) returned \[2.\] at "
+                                        r"t = 0.00 s; paces lie in \[0, 1\]"):
+        simulate(load_scene(scene))

@@ -1,6 +1,8 @@
-"""The classes a scene names by a string: its controller and its reclaim rate control.
+"""The classes a scene names by a string: its controller, its reclaim rate control and its
+anti-collision interlock.
 
-`[controller] type` and `[reclaim.rate_control] type` name a built-in class ("pid") or a class in
+`[controller] type`, `[reclaim.rate_control] type` and `[interlock] type` name a built-in class
+("pid") or a class in
 a Python file beside the scene ("my_controller.py:MyController"). The built-ins are held as
 "module:Class" strings and imported only where a class is used (a lockstep being built, a
 controller's scene keys being checked against its `Settings`), so the configuration layer has no
@@ -60,6 +62,14 @@ RATE_CONTROLS = Slot(
 )
 
 
+INTERLOCKS = Slot(
+    key="interlock.type",
+    base="bwr_twin.collision.interlock:Interlock",
+    built_in={"zones": "bwr_twin.collision.interlock:ZoneInterlock"},
+    default="zones",
+)
+
+
 def is_file_reference(name: str) -> bool:
     """'folder/my_controller.py:MyController' rather than a built-in name."""
     file, _, _ = name.rpartition(":")
@@ -90,6 +100,11 @@ def controller_class(name: str) -> type:
 def rate_control_class(name: str) -> type:
     """The rate control class a scene's `reclaim.rate_control.type` names."""
     return plugin_class(RATE_CONTROLS, name)
+
+
+def interlock_class(name: str) -> type:
+    """The interlock class a scene's `interlock.type` names."""
+    return plugin_class(INTERLOCKS, name)
 
 
 def _imported(reference: str) -> type:

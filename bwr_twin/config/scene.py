@@ -29,8 +29,10 @@ from bwr_twin.config.bounds import check_bounds
 from bwr_twin.config.faults import FaultSection, check_faults
 from bwr_twin.config.plugins import (
     CONTROLLERS,
+    INTERLOCKS,
     RATE_CONTROLS,
     controller_class,
+    interlock_class,
     is_file_reference,
     rate_control_class,
 )
@@ -207,12 +209,14 @@ class RateControlSection:
 
 @dataclass(frozen=True)
 class InterlockSection:
-    """`[interlock]`: the built-in anti-collision interlock (docs/anticollision.md). From each
-    collision shape's clearance to the pile the automation knows, less the distance the machine
-    would cover before it stands (its speed for `reaction` s, then braking at `deceleration`),
-    it warns within `warn` m, slows the path to `slow_share` of its speed within `slow` m and
-    stops it within `stop` m, held until the run ends; it leaves a warning or a slowdown once the
-    predicted clearance is `hysteresis` m beyond the zone's edge."""
+    """`[interlock]`: the anti-collision interlock (docs/anticollision.md). `type` "zones", the
+    built-in: from each collision shape's clearance to the pile the automation knows, less the
+    distance the machine would cover before it stands (its speed for `reaction` s, then braking
+    at `deceleration`), it warns within `warn` m, slows the path to `slow_share` of its speed
+    within `slow` m and stops it within `stop` m, held until the run ends; it leaves a warning or
+    a slowdown once the predicted clearance is `hysteresis` m beyond the zone's edge. Or an
+    engineer's class, "my_interlock.py:MyInterlock" (bwr_twin.collision.interlock), given these
+    numbers too."""
 
     warn: float  # m of predicted clearance
     slow: float  # m
@@ -221,6 +225,7 @@ class InterlockSection:
     deceleration: float = 0.05  # m/s^2 the drives brake the shapes at
     slow_share: float = 0.3  # of the path's speed, in the slow zone
     hysteresis: float = 0.5  # m beyond a zone's edge the predicted clearance must reach to leave it
+    type: str = INTERLOCKS.default
 
 
 @dataclass(frozen=True)
@@ -286,9 +291,10 @@ class Scene:
     def input_files(self) -> tuple[Path, ...]:
         """The files this scene reads: nothing the twin writes may replace them."""
         pile = (self.stockpile.surface_file,) if self.stockpile and self.stockpile.surface_file else ()
-        rate = self.reclaim.rate_control.type if self.reclaim else ""
-        rate_file = (Path(rate.rpartition(":")[0]),) if ":" in rate else ()
-        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile, *rate_file)
+        classes = (self.reclaim.rate_control.type if self.reclaim else "",
+                   self.interlock.type if self.interlock else "")
+        class_files = tuple(Path(name.rpartition(":")[0]) for name in classes if ":" in name)
+        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile, *class_files)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
@@ -440,7 +446,7 @@ def _rename_tables(raw: dict) -> dict:
 # ends in "_file", and the file part of a controller type "my_controller.py:MyController".
 PATH_KEYS = frozenset({"mjcf", "controller_mjcf", "rule_base"})
 # Keys that name a class, built in or "file.py:ClassName" relative to the scene file.
-CLASS_KEYS = (CONTROLLERS.key, RATE_CONTROLS.key)
+CLASS_KEYS = (CONTROLLERS.key, RATE_CONTROLS.key, INTERLOCKS.key)
 
 
 def _is_path_key(dotted: str) -> bool:
@@ -753,6 +759,10 @@ def _check_interlock(scene: Scene) -> None:
         raise SceneError(f"{p}: 'interlock.hysteresis' must be >= 0 m, got {lock.hysteresis}")
     if not 0 < lock.slow_share < 1:
         raise SceneError(f"{p}: 'interlock.slow_share' must lie in (0, 1), got {lock.slow_share}")
+    try:
+        interlock_class(lock.type)
+    except SceneError as exc:
+        raise SceneError(f"{p}: {exc}") from None
 
 
 def _check_stockpile(scene: Scene) -> None:

@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
-from bwr_twin.collision.interlock import ZoneInterlock
+from bwr_twin.collision.guard import Guard
 from bwr_twin.collision.monitor import PileClearance
 from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.plugins import controller_class
@@ -172,7 +172,8 @@ class Lockstep:
             reclaim's rate control reads them unless [sensing] rate_signals is "exact".
         collision: the machine's collision shapes against the runs' piles
             (bwr_twin.collision.monitor), or None without a pile or shapes.
-        interlock: the anti-collision interlock (bwr_twin.collision.interlock), or None.
+        interlock: the anti-collision interlock and the reference it paces
+            (bwr_twin.collision.guard), or None.
         faults: the scene's scheduled faults (bwr_twin.sensing.faults); `faults.acting(k)` says
             which act in period k.
     """
@@ -226,8 +227,7 @@ class Lockstep:
                 raise SceneError(f"{scene.path}: [interlock] keeps the machine's collision shapes clear of the pile, "
                                  f"but {machine.path.name} has none (geoms 'collision_<part>' in group 5, "
                                  "docs/anticollision.md)")
-            self.interlock = ZoneInterlock(scene.interlock, machine.collision_shapes, surface, runs, period,
-                                           tracking.rows)
+            self.interlock = Guard(scene, machine.collision_shapes, surface, runs, period, tracking.rows)
         nan = np.full(runs, np.nan)  # the readings of a machine without instruments
         self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
                                      if self.instruments is not None else (nan, nan))
@@ -413,7 +413,7 @@ class Lockstep:
             if self.collision is not None:
                 run_metrics["collision"] = self.collision.metrics(run)
                 if self.interlock is not None:
-                    run_metrics["collision"]["interventions"] = self.interlock.interventions[run]
+                    run_metrics["collision"]["interventions"] = self.interlock.interventions(run)
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),

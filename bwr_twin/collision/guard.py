@@ -1,0 +1,96 @@
+"""The twin's side of an anti-collision interlock: what it measures for the interlock, and the
+path followed at the pace the interlock decides (bwr_twin.collision.interlock).
+
+Every control period, as the encoders are read, each collision shape's clearance is measured
+where the encoders put it (not the true joints: a stuck or drifting encoder misleads the interlock
+as it would a real one) to the pile the runs know: the scanned pile where they scan, a cell never
+seen holding nothing, else the true one (bwr_twin.collision.monitor). The interlock returns each
+run's pace, and the reference of that same period is the path's at the run's own path time,
+which advances a pace of a control period each period: at rest while stopped, its velocity scaled
+by the pace and its acceleration by its square while slowed. The path time is kept as whole
+control periods and a fraction, so that a run the interlock never slows follows the path's rows
+exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from bwr_twin.collision.monitor import PileClearance
+from bwr_twin.collision.shapes import CollisionShape
+from bwr_twin.config.plugins import interlock_class
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import PluginError
+from bwr_twin.sim.plugins import call, checked, construct, describe
+from bwr_twin.stockpile.surface import Surface
+
+
+class Guard:
+    """Every run's interlocked reference.
+
+    Attributes:
+        interlock: the scene's interlock.
+        pace: (runs,) this period's, in [0, 1].
+        q, qd, qdd: (runs, 3) the reference of the period.
+    """
+
+    def __init__(self, scene: Scene, shapes: Sequence[CollisionShape], surface: Surface, runs: int, period: float,
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray]):
+        settings = scene.interlock
+        self.period = period
+        self.monitor = PileClearance(shapes, surface, runs, period)
+        cls = interlock_class(settings.type)
+        self._label = f"{scene.path}: interlock {describe(settings.type, cls)}"  # an engineer's failures are theirs
+        self.interlock = construct(self._label, cls, settings, runs, period, self.monitor.parts, self.monitor.levers)
+        self._rows = rows  # the path's (samples, 3) positions, velocities, accelerations
+        self.pace = np.ones(runs)
+        self._whole = [0] * runs  # path time: whole control periods ...
+        self._fraction = [0.0] * runs  # ... and a fraction of one
+        self.q, self.qd, self.qdd = (np.zeros((runs, 3)) for _ in range(3))
+
+    def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, known: np.ndarray) -> None:
+        """Period k's pace of every run, from its encoders' (runs, 3) readings and the pile it
+        knows, (runs, ny, nx) m (NaN: never seen); then its reference for the period."""
+        monitor, time = self.monitor, round(k * self.period, 9)
+        monitor.step(k, q_measured, qd_measured, known, None)
+        interlock = self.interlock
+        pace = checked(self._label, "pace", call(self._label, interlock.pace, "pace", time, time, q_measured,
+                                                 qd_measured, monitor.now.copy()), (len(self.pace),), time)
+        if not ((pace >= 0.0) & (pace <= 1.0)).all():
+            raise PluginError(f"{self._label}: pace() returned {pace} at t = {time:.2f} s; paces lie in [0, 1]")
+        self.pace = pace
+        self._reference()
+
+    def _reference(self) -> None:
+        """Each run's reference at its path time: the rows between which it lies, interpolated;
+        the velocity scaled by the pace, the acceleration by its square."""
+        positions, velocities, accelerations = self._rows
+        last = len(positions) - 1
+        for run, pace in enumerate(self.pace.tolist()):
+            i, f = min(self._whole[run], last), self._fraction[run]
+            if f == 0.0 or i == last:
+                q, qd, qdd = positions[i], velocities[i], accelerations[i]
+            else:
+                q = positions[i] + (positions[i + 1] - positions[i]) * f
+                qd = velocities[i] + (velocities[i + 1] - velocities[i]) * f
+                qdd = accelerations[i] + (accelerations[i + 1] - accelerations[i]) * f
+            self.q[run] = q
+            self.qd[run] = qd * pace
+            self.qdd[run] = qdd * pace * pace
+
+    def advance(self) -> None:
+        """On along each run's path, a pace of a control period."""
+        for run, pace in enumerate(self.pace.tolist()):
+            if pace == 1.0 and self._fraction[run] == 0.0:
+                self._whole[run] += 1  # the path's own rows, exactly
+                continue
+            fraction = self._fraction[run] + pace
+            whole = math.floor(fraction)
+            self._whole[run] += whole
+            self._fraction[run] = fraction - whole
+
+    def interventions(self, run: int) -> list[dict]:
+        return list(self.interlock.interventions[run])
