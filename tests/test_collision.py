@@ -228,3 +228,26 @@ def test_an_engineer_s_interlock_replaces_the_built_in(tmp_path):
     with pytest.raises(Exception, match=r"mine.toml: interlock .*my_interlock.py:Runaway: pace\(\) returned \[2.\] at "
                                         r"t = 0.00 s; paces lie in \[0, 1\]"):
         simulate(load_scene(scene))
+
+
+def test_a_bench_reclaim_is_slowed_by_the_interlock_from_the_next_period(tmp_path):
+    """The small bench scene's boom passes 5.0 m above its pile: with a slow zone at 6 m the
+    interlock slows the plan where it comes near (its moves' time and its passes' speed law at
+    the slow share), once and for the rest of the bench, the machine at full pace staying near; the
+    plan is carried out to its end all the same, later, and the boom keeps farther from the pile."""
+    from test_reclaim_plan import scene_file
+
+    plain = simulate(load_scene(scene_file(tmp_path)))
+    zones = "\n[interlock]\nwarn = 7.0\nslow = 6.0\nstop = 4.5\n"
+    slowed = simulate(load_scene(scene_file(tmp_path, extra=zones, name="slowed.toml")))
+    collision = slowed.metrics["collision"]
+    assert [i["kind"] for i in collision["interventions"]] == ["warn", "slow"]
+    assert collision["contacts"] == []
+    assert slowed.metrics["run"]["duration"] > 1.5 * plain.metrics["run"]["duration"]
+    names = slowed.metrics["run"]["waypoint_names"]
+    assert names == plain.metrics["run"]["waypoint_names"] and names[-1] == "end"  # every pass, to the plan's end
+    assert slowed.metrics["reclaim"]["bench_t"][0] > 0.8 * plain.metrics["reclaim"]["bench_t"][0]
+    assert collision["pile"]["boom"]["clearance_m"] > plain.metrics["collision"]["pile"]["boom"]["clearance_m"]
+    slow_from = collision["interventions"][1]["time_s"]
+    after = slowed.time > slow_from + 1.0
+    assert np.abs(slowed.qd_desired[after, 0]).max() <= 0.3 * 0.5 + 1e-9  # the travel at most the slow share of its rated 0.5 m/s

@@ -9,7 +9,8 @@ run's pace, and the reference of that same period is the path's at the run's own
 which advances a pace of a control period each period: at rest while stopped, its velocity scaled
 by the pace and its acceleration by its square while slowed. The path time is kept as whole
 control periods and a fraction, so that a run the interlock never slows follows the path's rows
-exactly.
+exactly. A bench plan's follower takes the pace itself from the next period on: a move's time
+runs at it, a pass's speed law is scaled by it, the slew braking to it within its acceleration.
 """
 
 from __future__ import annotations
@@ -38,7 +39,10 @@ class Guard:
     """
 
     def __init__(self, scene: Scene, shapes: Sequence[CollisionShape], surface: Surface, runs: int, period: float,
-                 rows: tuple[np.ndarray, np.ndarray, np.ndarray]):
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray] | None):
+        """`rows`: a path's (samples, 3) positions, velocities and accelerations, which the guard
+        follows at the pace; None for a bench plan, whose follower takes the pace itself
+        (bwr_twin.planning.follower), from the next period on."""
         settings = scene.interlock
         self.period = period
         self.monitor = PileClearance(shapes, surface, runs, period)
@@ -62,7 +66,8 @@ class Guard:
         if not ((pace >= 0.0) & (pace <= 1.0)).all():
             raise PluginError(f"{self._label}: pace() returned {pace} at t = {time:.2f} s; paces lie in [0, 1]")
         self.pace = pace
-        self._reference()
+        if self._rows is not None:
+            self._reference()
 
     def _reference(self) -> None:
         """Each run's reference at its path time: the rows between which it lies, interpolated;
@@ -83,6 +88,8 @@ class Guard:
 
     def advance(self) -> None:
         """On along each run's path, a pace of a control period."""
+        if self._rows is None:
+            return
         for run, pace in enumerate(self.pace.tolist()):
             if pace == 1.0 and self._fraction[run] == 0.0:
                 self._whole[run] += 1  # the path's own rows, exactly

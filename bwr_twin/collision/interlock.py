@@ -14,8 +14,9 @@ on the shapes' levers) held for the reaction time, then braked at the decelerati
 v t + v^2 / 2a. Within `warn` m of predicted clearance it warns, within `slow` m it slows the path
 to `slow_share` of its pace, within `stop` m it stops it and holds it there until the run ends,
 as commercial systems latch a stop until an operator resets it. A warning or a slowdown ends once
-the predicted clearance is `hysteresis` m beyond its zone's edge: slowing lengthens the predicted
-clearance, which would otherwise leave the zone at once and enter it again.
+the clearance predicted at the full pace it would resume is `hysteresis` m beyond its zone's edge:
+slowing shortens the stopping distance, so the prediction at the slowed pace alone would leave the
+zone at once and enter it again.
 """
 
 from __future__ import annotations
@@ -70,12 +71,14 @@ class ZoneInterlock(Interlock):
              clearance: np.ndarray) -> np.ndarray:
         s = self.settings
         speed = np.abs(qd_measured) @ self.levers  # m/s, the shapes' fastest
-        stopping = speed * s.reaction + speed**2 / (2.0 * s.deceleration)
         least = clearance.argmin(axis=1)
-        self.predicted = clearance[np.arange(len(least)), least] - stopping
+        nearest = clearance[np.arange(len(least)), least]
+        self.predicted = nearest - self._stopping(speed)
         zone = np.where(self.predicted <= s.stop, STOP, np.where(self.predicted <= s.slow, SLOW,
                                                                  np.where(self.predicted <= s.warn, WARN, CLEAR)))
-        leaving = (zone < self.state) & (self.predicted <= self._edges[self.state] + s.hysteresis)
+        # A slowdown ends only if the machine, back at its full pace, would stay clear of the zone.
+        resumed = nearest - self._stopping(speed / np.maximum(self._paces[self.state], s.slow_share))
+        leaving = (zone < self.state) & (resumed <= self._edges[self.state] + s.hysteresis)
         zone = np.where(leaving | (self.state == STOP), self.state, zone)  # a stop holds; the rest with hysteresis
         for run in np.flatnonzero(zone != self.state):
             self.interventions[run].append({"kind": STATES[zone[run]], "time_s": time,
@@ -83,3 +86,8 @@ class ZoneInterlock(Interlock):
                                             "part": self.parts[least[run]]})
         self.state = zone
         return self._paces[zone]
+
+    def _stopping(self, speed: np.ndarray) -> np.ndarray:
+        """m the shapes cover at `speed` (m/s) before they stand: the reaction, then the braking."""
+        s = self.settings
+        return speed * s.reaction + speed**2 / (2.0 * s.deceleration)

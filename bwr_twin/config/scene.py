@@ -746,9 +746,6 @@ def _check_interlock(scene: Scene) -> None:
         return
     if scene.stockpile is None:
         raise SceneError(f"{p}: [interlock] keeps the machine clear of the pile, but the scene has no [stockpile]")
-    if scene.reclaim is not None:
-        raise SceneError(f"{p}: [interlock] slows and stops a [path]'s reference; a [reclaim]'s is not yet "
-                         "interlocked: remove [interlock]")
     if not 0 < lock.stop < lock.slow < lock.warn:
         raise SceneError(f"{p}: [interlock] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop {lock.stop}, "
                          f"slow {lock.slow}, warn {lock.warn}")

@@ -101,6 +101,7 @@ class BenchReference:
         self._slew_acceleration = float(plan.acceleration[SLEW])
         self._top = float(plan.rated_speed[SLEW])
         self._trim = [1.0] * runs
+        self._pace = [1.0] * runs  # an interlock's: the share of its pace each run follows its plan at
         for run in range(runs):
             self._plan_period(run)
 
@@ -143,11 +144,16 @@ class BenchReference:
         segment = self.plan.segments[self.segment[run]]
         return segment if isinstance(segment, Pass) else None
 
-    def advance(self, trim: np.ndarray | None = None, stop: np.ndarray | None = None) -> None:
+    def advance(self, trim: np.ndarray | None = None, stop: np.ndarray | None = None,
+                pace: np.ndarray | None = None) -> None:
         """Move every run on by one control period; `trim` (runs,) scales the speed law from now
-        on, `stop` (runs,) bool ends a run's plan: a pass brakes to rest, a move is completed."""
+        on, `stop` (runs,) bool ends a run's plan: a pass brakes to rest, a move is completed;
+        `pace` (runs,) in [0, 1], an interlock's, slows the plan: a move's time runs at it (its
+        velocity and acceleration scaled), a pass's speed law is scaled by it and braked to."""
         if trim is not None:
             self._trim = np.asarray(trim, dtype=float).tolist()
+        if pace is not None:
+            self._pace = np.asarray(pace, dtype=float).tolist()
         if stop is not None:
             self.stopping |= stop
         self.k += 1
@@ -158,7 +164,7 @@ class BenchReference:
             index = self.segment.item(run)
             segment = self.plan.segments[index]
             if isinstance(segment, Move):
-                self._elapsed[run] += dt
+                self._elapsed[run] += dt * self._pace[run]
                 if self._elapsed[run] >= segment.duration - 1e-9:
                     self._next(run, segment.end)
             else:
@@ -196,8 +202,12 @@ class BenchReference:
             start, end = self._ends[index]
             s = min(max(self._elapsed[run] / segment.duration, 0.0), 1.0)  # as Move.sample
             q, qd, qdd = self.q, self.qd, self.qdd
+            pace = self._pace[run]
             for j in range(3):
                 q[run, j], qd[run, j], qdd[run, j] = rest_to_rest(start[j], end[j], segment.duration, s)
+                if pace != 1.0:
+                    qd[run, j] *= pace
+                    qdd[run, j] *= pace * pace
             return
         slew, speed = self.q.item(run, SLEW), self.qd.item(run, SLEW)
         direction, a, dt = segment.direction, self._slew_acceleration, self.period
@@ -206,7 +216,7 @@ class BenchReference:
             wanted = 0.0
         else:
             remaining = max((segment.end - slew) * direction, 0.0)
-            law = self.plan.law.speed(segment, slew) * self._trim[run]
+            law = self.plan.law.speed(segment, slew) * self._trim[run] * self._pace[run]
             # The fastest speed v at the period's end from which braking by a dt a period still
             # stops at the pass's end: this period's (|qd| + v) dt / 2 and then at most
             # v^2 / 2a + v dt / 2 of braking fit in what remains.

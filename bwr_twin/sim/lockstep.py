@@ -227,7 +227,8 @@ class Lockstep:
                 raise SceneError(f"{scene.path}: [interlock] keeps the machine's collision shapes clear of the pile, "
                                  f"but {machine.path.name} has none (geoms 'collision_<part>' in group 5, "
                                  "docs/anticollision.md)")
-            self.interlock = Guard(scene, machine.collision_shapes, surface, runs, period, tracking.rows)
+            self.interlock = Guard(scene, machine.collision_shapes, surface, runs, period,
+                                   tracking.rows if tracking.shared else None)
         nan = np.full(runs, np.nan)  # the readings of a machine without instruments
         self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
                                      if self.instruments is not None else (nan, nan))
@@ -277,7 +278,7 @@ class Lockstep:
     def reference_now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Period k's reference: position, velocity, acceleration, (3,) for every run or (runs, 3)
         (each run's own under an interlock, which decides it as the period is measured)."""
-        if self.interlock is not None:
+        if self.interlock is not None and self.tracking.shared:
             lock = self.interlock
             return lock.q, lock.qd, lock.qdd
         return self.tracking.now()
@@ -302,6 +303,8 @@ class Lockstep:
         if self.interlock is not None:  # ... and so does the interlock, which decides this period's reference
             known = self.scanning.survey.z if self.scanning is not None else self.reclaim.cutter.heights
             self.interlock.decide(self.k, row.q_measured, row.qd_measured, known)
+            if not self.tracking.shared:  # a bench plan's follower takes it from the next period on
+                self.tracking.pace = self.interlock.pace
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 

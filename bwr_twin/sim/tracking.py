@@ -11,6 +11,7 @@ move on a period (`advance`) and say where each run began each segment (`waypoin
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -87,10 +88,13 @@ class BenchTracking:
         external_trim: None while the scene's rate control trims the slew speed; else the trim
             every run takes from the next period on, set by a rate loop outside the twin (the
             FMU's importer), held within the scene's `trim_limits`.
+        pace: None, or an interlock's (runs,) pace along the plan in [0, 1], from the next
+            period on (bwr_twin.collision.guard).
     """
 
     shared = False
     external_trim: float | None = None
+    pace: np.ndarray | None = None  # an interlock's (runs,) pace along the plan, from the next period on
 
     def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float, *,
                  known_pile: Callable[[], np.ndarray] | None = None, instruments: RateInstruments | None = None):
@@ -107,6 +111,9 @@ class BenchTracking:
         self.surveying = known_pile is not None and survey is not None  # the benches are still to plan
         self.plan = survey if self.surveying else plan_scene(scene)
         self._reference = reference = BenchReference(self.plan, len(scenes), period, machine.fk)
+        if scene.interlock is not None:  # slowed, the plan may take as long again over the slow share
+            reference.samples = math.ceil(reference.samples / scene.interlock.slow_share)
+            reference.time = np.arange(reference.samples) * period
         self.samples, self.time, self.start = reference.samples, reference.time, reference.start
         self._period = period
         self._stop = scene.reclaim.stop
@@ -160,7 +167,7 @@ class BenchTracking:
             stopping = np.ones(len(trim), dtype=bool)
         elif stop.tonnes is not None:
             stopping = reclaim.carried_tonnes() >= stop.tonnes
-        reference.advance(trim, stopping)
+        reference.advance(trim, stopping, self.pace)
         if not reference.finished.all():
             return None
         if self.surveying:
