@@ -24,9 +24,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from bwr_twin.config.faults import FAULT_AXES, FaultSection
+from bwr_twin.sensing.noise import PeriodNormals
 
 FAULT_STREAM = 3  # the SeedSequence child of a run's seed the faults draw from
-BLOCK = 1000  # control periods of noise drawn at once
 _TOLERANCE = 1e-9  # of a period: k x period within it of a boundary is on it
 _NEVER = sys.maxsize  # the last period of a fault that lasts to the run's end
 _ENCODER_KINDS = ("encoder_stuck", "encoder_dropout", "encoder_drift", "encoder_noise")
@@ -43,29 +43,6 @@ def fault_periods(fault: FaultSection, period: float) -> tuple[int, int]:
     return first, math.ceil((fault.start + fault.duration) / period - _TOLERANCE) - 1
 
 
-class _FaultNoise:
-    """One noise fault's standard normals for every run: `at(i)` is the (runs,) draws of the
-    i-th period the fault acts, asked for in increasing order; drawn a block at a time."""
-
-    def __init__(self, seeds: Sequence[int], fault_index: int, count: int):
-        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(FAULT_STREAM,
-                                                                                          fault_index)))
-                            for seed in seeds]
-        self._count = count  # periods the fault acts, at most
-        self._block = np.zeros((len(seeds), 0))
-        self._start = 0  # the first draw of the block
-        self._drawn = 0  # draws made per run
-
-    def at(self, i: int) -> np.ndarray:
-        if i < self._start:
-            raise RuntimeError(f"fault noise asked for draw {i} after draw {self._start}: periods must increase")
-        while i >= self._drawn:  # draws are never skipped: a block follows the one before it
-            size = min(BLOCK, self._count - self._drawn)
-            self._block = np.stack([generator.standard_normal(size) for generator in self._generators])
-            self._start, self._drawn = self._drawn, self._drawn + size
-        return self._block[:, i - self._start]
-
-
 class _EncoderFault:
     """An encoder fault, scheduled: its axis's column and its rate or sigma in m or rad."""
 
@@ -77,8 +54,8 @@ class _EncoderFault:
         self.rate = (fault.rate or 0.0) * _TO_TWIN[self.axis]  # m/s or rad/s
         self.sigma = (fault.sigma or 0.0) * _TO_TWIN[self.axis]  # m or rad
         self.held: np.ndarray | None = None  # (runs,) the stuck position, from the first period it acts
-        count = self.last - self.first + 1
-        self.noise = _FaultNoise(seeds, index, count) if fault.kind == "encoder_noise" else None
+        # a draw a period it acts, the first its 0th: the same whenever it starts
+        self.noise = PeriodNormals(seeds, (FAULT_STREAM, index)) if fault.kind == "encoder_noise" else None
 
     def apply(self, k: int, period: float, q: np.ndarray, qd: np.ndarray) -> None:
         j = self.axis

@@ -1,4 +1,6 @@
-"""The random numbers of each run's scanners, from the run's seed alone.
+"""The random numbers of each run's senses, from the run's seed alone: the scanners' per ray, and
+a normal a control period for the faults and the instruments (`PeriodNormals`, children 3, 4
+and 5 of the run's SeedSequence).
 
 Each run draws from its own stream: the third child of its seed's SeedSequence (the first two
 are the disturbance forces' and the gusts', bwr_twin.sim.disturbances), and within it one child
@@ -16,6 +18,7 @@ import numpy as np
 
 SCANNER_STREAM = 2  # the SeedSequence child of a run's seed the scanners draw from
 BLOCK = 64  # scans drawn at once: 2.6 s at 25 Hz
+PERIOD_BLOCK = 1000  # control periods of normals drawn at once
 
 
 class ScanNoise:
@@ -39,3 +42,26 @@ class ScanNoise:
                 generator.random(out=self._uniform[run])
             self._start = start
         return self._normal[:, n - start], self._uniform[:, n - start]
+
+
+class PeriodNormals:
+    """A standard normal a control period for every run, each run from its own stream, the
+    `spawn_key` child of its seed's SeedSequence (the faults' and the instruments'): `at(k)` is
+    period k's (runs,); periods must be asked for in increasing order. Every block is drawn, so a
+    stream stays in step whichever periods are asked for."""
+
+    def __init__(self, seeds: Sequence[int], spawn_key: tuple[int, ...]):
+        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=spawn_key))
+                            for seed in seeds]
+        self._block = np.empty((len(seeds), PERIOD_BLOCK))
+        self._start = None
+
+    def at(self, k: int) -> np.ndarray:
+        start = k - k % PERIOD_BLOCK
+        if self._start is not None and start < self._start:
+            raise RuntimeError(f"normals asked for period {k} after period {self._start}: periods must increase")
+        while self._start is None or self._start < start:
+            for run, generator in enumerate(self._generators):
+                generator.standard_normal(out=self._block[run])
+            self._start = 0 if self._start is None else self._start + PERIOD_BLOCK
+        return self._block[:, k - start]

@@ -24,31 +24,12 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.sensing.instruments import BeltScaleSpec, WheelMotorSpec
+from bwr_twin.sensing.noise import PeriodNormals
 
 if TYPE_CHECKING:
     from bwr_twin.model.machine import Machine
 
 SCALE_STREAM, CURRENT_STREAM = 4, 5
-BLOCK = 1000  # control periods drawn at once
-
-
-class NormalStream:
-    """A standard normal a control period for every run, from each run's own stream: `at(k)` is
-    period k's (runs,); periods must be asked for in increasing order."""
-
-    def __init__(self, seeds: Sequence[int], stream: int):
-        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(stream,)))
-                            for seed in seeds]
-        self._block = np.empty((len(seeds), BLOCK))
-        self._start = None
-
-    def at(self, k: int) -> np.ndarray:
-        start = k - k % BLOCK
-        while self._start is None or self._start < start:  # every block drawn, so the streams stay in step
-            for run, generator in enumerate(self._generators):
-                generator.standard_normal(out=self._block[run])
-            self._start = 0 if self._start is None else self._start + BLOCK
-        return self._block[:, k - start]
 
 
 def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], period: float) -> RateInstruments | None:
@@ -94,10 +75,10 @@ class RateInstruments:
             self.delay_periods = round(scale.delay / period)
             self._belt = np.zeros((self.delay_periods + 1, runs))  # the true rates of the periods in transit
             self._smoothing = period / (scale.filter_time + period)
-            self._scale_noise = NormalStream(seeds, SCALE_STREAM)
+            self._scale_noise = PeriodNormals(seeds, (SCALE_STREAM,))
             self.belt_scale[:] = 0.0
         if motor is not None:
-            self._current_noise = NormalStream(seeds, CURRENT_STREAM)
+            self._current_noise = PeriodNormals(seeds, (CURRENT_STREAM,))
             self.wheel_current[:] = self.wheel_power[:] = 0.0  # before the first reading
 
     def read(self, k: int, rate: np.ndarray, power: np.ndarray, scale_frozen: bool = False) -> None:
