@@ -9,13 +9,15 @@ from conftest import SCENES
 from test_reclaim_plan import scene_file
 
 from bwr_twin import SceneError
-from bwr_twin.config.scene import load_scene
+from bwr_twin.config.scene import RateControlSection, load_scene
+from bwr_twin.control.rate import PowerAndScale, RateSignals, WheelCalibration
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_after_survey, plan_scene
 from bwr_twin.results.rundir import write_run
 from bwr_twin.sensing.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.lockstep import simulate
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 # The small bench scene surveyed first: from where it starts, the boom slews across the small
 # windrow and back, its fan sweeping the pile 10-25 m beyond the wheel head.
@@ -134,6 +136,36 @@ def test_a_rate_loop_without_its_instrument_is_refused(tmp_path):
     with pytest.raises(SceneError, match=r"'reclaim.rate_control.type' \"belt_scale\" reads a belt scale, but "
                                           r"noscale.xml describes none \(custom numeric 'belt_scale_distance'"):
         simulate(load_scene(path))
+    both = path.read_text().replace('type = "belt_scale"', 'type = "power_and_scale"')
+    path.write_text(both)
+    with pytest.raises(SceneError, match=r"'reclaim.rate_control.type' \"power_and_scale\" reads a belt scale, "
+                                          r"but noscale.xml"):
+        simulate(load_scene(path))
+
+
+def test_the_belt_scale_calibrates_the_power_the_loop_trims_from():
+    """The automation assumes a cutting energy 20 % low: the power alone then reads the rate 25 %
+    high; once the scale has weighed enough, the scale's tonnes over the power's a belt delay
+    earlier bring the loop's reading to the true rate, the pulses of the face and all."""
+    period, delay, target = 0.1, 2.0, np.array([8000.0, 8000.0])
+    settings = RateControlSection(type="power_and_scale", calibration_time=60.0)
+    true_energy, density, idle = 6.0e5, 2200.0, 3.0e5
+    wheel = WheelCalibration(idle_power=np.full(2, idle), cutting_energy=np.array([0.8, 1.0]) * true_energy,
+                             bulk_density=np.full(2, density), belt_delay=delay)
+    loop = PowerAndScale(settings, target, period, wheel)
+    steps = round(400.0 / period)
+    time = np.arange(steps) * period
+    rate = 8000.0 * (1.0 + 0.3 * np.sin(2 * np.pi * time / 40.0))  # t/h, the face rising and falling
+    power = idle + rate / (SECONDS_PER_HOUR / KG_PER_T) / density * true_energy
+    lag = round(delay / period)
+    seen = np.empty((steps, 2))
+    for k in range(steps):
+        weighed = rate[k - lag] if k >= lag else 0.0
+        signals = RateSignals(np.full(2, weighed), np.full(2, power[k]), np.ones(2, bool), np.ones(2, bool))
+        seen[k] = loop.measured(signals)
+    assert seen[5, 0] == pytest.approx(1.25 * rate[5])  # before the scale has weighed enough
+    np.testing.assert_allclose(loop.correction, [0.8, 1.0], rtol=1e-3)
+    np.testing.assert_allclose(seen[-1000:], np.column_stack([rate[-1000:]] * 2), rtol=1e-3)
 
 
 # -- faults as the controller sees them ---------------------------------------------------------

@@ -57,6 +57,7 @@ RATE_CONTROLS = Slot(
         "open_loop": "bwr_twin.control.rate:RateControl",
         "belt_scale": "bwr_twin.control.rate:BeltScale",
         "wheel_power": "bwr_twin.control.rate:WheelPower",
+        "power_and_scale": "bwr_twin.control.rate:PowerAndScale",
     },
     default="open_loop",
 )

@@ -194,7 +194,8 @@ class RateControlSection:
 
     `type` "open_loop" follows the speed law alone; "belt_scale" trims it from the measured
     reclaim rate, "wheel_power" from the wheel drive's power (the industry's proxy; it needs
-    [digging]); or an engineer's class, "my_rate.py:MyRateControl" (bwr_twin.control.rate).
+    [digging]), "power_and_scale" from the power as the belt scale calibrates it; or an
+    engineer's class, "my_rate.py:MyRateControl" (bwr_twin.control.rate).
     The trim is a PI on the relative rate error: 1 + gain (e + integral(e) / integral_time),
     within trim_limits, the measurement smoothed first over filter_time (a bucket wheel's rate
     pulses with every bucket).
@@ -205,6 +206,10 @@ class RateControlSection:
     integral_time: float = 4.0  # s
     filter_time: float = 1.0  # s, first-order low-pass on the measured rate
     trim_limits: tuple[float, float] = (0.5, 2.0)  # the slew speed within these multiples of the law's
+    # "power_and_scale": the memory of the belt scale's correction to the power's calibration
+    calibration_time: float = 300.0  # s
+    # J/m^3 the automation assumes to turn the wheel's power into a rate; None: [digging]'s own
+    cutting_energy: float | None = None
 
 
 @dataclass(frozen=True)
@@ -710,16 +715,18 @@ def _check_reclaim(scene: Scene) -> None:
         raise SceneError(f"{p}: {exc}") from None
     if not control.gain >= 0:
         raise SceneError(f"{p}: 'reclaim.rate_control.gain' must be >= 0, got {control.gain}")
-    for key in ("integral_time", "filter_time"):
+    for key in ("integral_time", "filter_time", "calibration_time"):
         if not getattr(control, key) > 0:
             raise SceneError(f"{p}: 'reclaim.rate_control.{key}' must be > 0, got {getattr(control, key)}")
     low, high = control.trim_limits
     if not 0 < low <= 1 <= high:
         raise SceneError(f"{p}: 'reclaim.rate_control.trim_limits' must hold 0 < low <= 1 <= high, "
                          f"got {list(control.trim_limits)}")
-    if control.type == "wheel_power" and scene.digging is None:
-        raise SceneError(f"{p}: 'reclaim.rate_control.type' \"wheel_power\" needs [digging]: "
+    if control.type in ("wheel_power", "power_and_scale") and scene.digging is None:
+        raise SceneError(f"{p}: 'reclaim.rate_control.type' \"{control.type}\" needs [digging]: "
                          "without a digging load the wheel's power does not follow the rate")
+    if control.cutting_energy is not None and not control.cutting_energy > 0:
+        raise SceneError(f"{p}: 'reclaim.rate_control.cutting_energy' must be > 0 J/m^3, got {control.cutting_energy}")
 
 
 def _check_sensing(scene: Scene) -> None:

@@ -15,6 +15,7 @@ numbers, not scenes: the settings, and each run's target and wheel calibration a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -32,16 +33,22 @@ class RateSettings(Protocol):
     integral_time: float  # s
     filter_time: float  # s
     trim_limits: tuple[float, float]
+    calibration_time: float  # s: the memory of PowerAndScale's correction
 
 
 @dataclass(frozen=True)
 class WheelCalibration:
-    """Every run's digging load, which turns the wheel drive's power into a rate:
-    rate = (power - idle_power) / cutting_energy x bulk_density. NaN for a run without [digging]."""
+    """What the automation knows to turn its signals into a rate: every run's digging load,
+    rate = (power - idle_power) / cutting_energy x bulk_density (NaN for a run without
+    [digging]; the cutting energy the scene's rate control assumes, else the true one), and the
+    belt scale's delay behind the wheel."""
 
     idle_power: np.ndarray  # (runs,) W
     cutting_energy: np.ndarray  # (runs,) J/m^3
     bulk_density: np.ndarray  # (runs,) kg/m^3
+    # s from the wheel's discharge to the belt rate the loop reads: the belt scale's (the MJCF's),
+    # or 0 where the loop reads the true rate ([sensing] rate_signals "exact")
+    belt_delay: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -120,6 +127,37 @@ class WheelPower(RateFeedback):
 
     def measured(self, signals: RateSignals) -> np.ndarray:
         return np.maximum(signals.wheel_power - self.wheel.idle_power, 0.0) * self._tonnes_per_joule
+
+
+class PowerAndScale(WheelPower):
+    """Trims from the wheel drive's power, as WheelPower does, its calibration corrected by the
+    belt scale: the scale's tonnes over the power's tonnes `belt_delay` earlier (the same
+    material, weighed), both summed with a memory of `calibration_time` s. The power has no
+    transport delay, so the loop stays quick; the scale, legal for trade, sets its mean. The
+    correction starts once both have summed a tenth of the target rate over `calibration_time`."""
+
+    def __init__(self, settings: RateSettings, target: np.ndarray, period: float, wheel: WheelCalibration):
+        super().__init__(settings, target, period, wheel)
+        runs = len(target)
+        self._delay = round(wheel.belt_delay / period)
+        self._in_transit = np.zeros((self._delay + 1, runs))  # the power's rates of the periods on the belt
+        self._k = 0
+        self._memory = math.exp(-period / settings.calibration_time)
+        self._weighed, self._powered = np.zeros(runs), np.zeros(runs)  # t/h x s, forgetting
+        self._enough = 0.1 * target * settings.calibration_time
+        self.correction = np.ones(runs)  # the scale's tonnes over the power's, as the loop applies it
+
+    def measured(self, signals: RateSignals) -> np.ndarray:
+        from_power = super().measured(signals)
+        ring = self._in_transit
+        ring[self._k % len(ring)] = from_power
+        if self._k >= self._delay:
+            self._weighed = self._weighed * self._memory + signals.belt_rate * self.period
+            self._powered = self._powered * self._memory + ring[(self._k - self._delay) % len(ring)] * self.period
+            ready = (self._powered > self._enough) & (self._weighed > self._enough)
+            self.correction = np.where(ready, self._weighed / np.maximum(self._powered, 1e-12), self.correction)
+        self._k += 1
+        return from_power * self.correction
 
 
 @numba.njit(cache=True)

@@ -49,13 +49,14 @@ def rate_loop_reads_instruments(scene: Scene, machine: Machine) -> bool:
     if scene.reclaim is None or wanted == "exact" or (wanted is None and scale is None and motor is None):
         return False
     control = scene.reclaim.rate_control.type
-    needs = {"belt_scale": ("a belt scale", scale, "belt_scale_distance"),
-             "wheel_power": ("a wheel motor", motor, "wheel_motor")}.get(control)
-    if needs is not None and needs[1] is None:
-        what, _, key = needs
-        raise SceneError(f"{scene.path}: 'reclaim.rate_control.type' \"{control}\" reads {what}, but "
-                         f"{machine.path.name} describes none (custom numeric '{key}', docs/sensing.md); "
-                         "set 'sensing.rate_signals' = \"exact\" to read the true signal")
+    scale_needed, motor_needed = ("a belt scale", scale, "belt_scale_distance"), ("a wheel motor", motor, "wheel_motor")
+    needs = {"belt_scale": [scale_needed], "wheel_power": [motor_needed],
+             "power_and_scale": [motor_needed, scale_needed]}.get(control, [])
+    for what, present, key in needs:
+        if present is None:
+            raise SceneError(f"{scene.path}: 'reclaim.rate_control.type' \"{control}\" reads {what}, but "
+                             f"{machine.path.name} describes none (custom numeric '{key}', docs/sensing.md); "
+                             "set 'sensing.rate_signals' = \"exact\" to read the true signal")
     return True
 
 

@@ -122,8 +122,9 @@ class BenchTracking:
         digging = [s.digging for s in scenes]
         wheel = WheelCalibration(
             idle_power=np.array([d.idle_power if d else np.nan for d in digging]),
-            cutting_energy=np.array([d.cutting_energy if d else np.nan for d in digging]),
+            cutting_energy=np.array([(control.cutting_energy or d.cutting_energy) if d else np.nan for d in digging]),
             bulk_density=np.array([s.stockpile.bulk_density for s in scenes]),
+            belt_delay=instruments.delay_periods * period if instruments and instruments.scale else 0.0,
         )
         targets = np.array([s.reclaim.target_rate for s in scenes])
         cls = rate_control_class(control.type)
