@@ -272,6 +272,26 @@ class ReclaimSection:
 
 
 @dataclass(frozen=True)
+class ScheduleStep:
+    t: float  # s
+    q: Vec3  # travel m, slew deg, luff deg
+
+
+@dataclass(frozen=True)
+class NeighbourSection:
+    """`[neighbour]`: a second machine on the same rail, from its own MJCF, simulated in the same
+    world (docs/anticollision.md). It follows its `schedule`: where it stands at each time, at
+    rest there, one cubic between (the path's law); before the first time and after the last it
+    stands still. Its drives hold the schedule with a PD on its own inertia at its start,
+    critically damped at `bandwidth`, gravity and bias compensated, within their force limits."""
+
+    mjcf: Path
+    schedule: tuple[ScheduleStep, ...]
+    bandwidth: float = 0.5  # rad/s of the drives' hold on the schedule
+    report_delay: float = 0.5  # s: the automation hears its position this late (its radio link)
+
+
+@dataclass(frozen=True)
 class Scene:
     path: Path  # the scene file, for messages
     machine: MachineSection
@@ -287,6 +307,7 @@ class Scene:
     sensing: SensingSection = field(default_factory=SensingSection)
     faults: tuple[FaultSection, ...] = ()  # [[faults]]: what fails, when, for how long (docs/sensing.md)
     interlock: InterlockSection | None = None  # the anti-collision interlock (docs/anticollision.md)
+    neighbour: NeighbourSection | None = None  # a second machine on the rail (docs/anticollision.md)
 
     @property
     def controller_mjcf(self) -> Path:
@@ -299,7 +320,9 @@ class Scene:
         classes = (self.reclaim.rate_control.type if self.reclaim else "",
                    self.interlock.type if self.interlock else "")
         class_files = tuple(Path(name.rpartition(":")[0]) for name in classes if ":" in name)
-        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile, *class_files)
+        neighbour = (self.neighbour.mjcf,) if self.neighbour else ()
+        return (self.path, self.machine.mjcf, self.controller_mjcf, *self.controller.files, *pile, *class_files,
+                *neighbour)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (paths as strings), as written next to a run's results."""
@@ -660,6 +683,7 @@ def _check_rules(scene: Scene) -> None:
         _check_reclaim(scene)
     _check_sensing(scene)
     _check_interlock(scene)
+    _check_neighbour(scene)
     runs_until = scene.trajectory.via_points[-1].t if scene.trajectory is not None else None
     check_faults(p, scene.faults, runs_until)
     files = {"machine.mjcf": scene.machine.mjcf, "machine.controller_mjcf": scene.machine.controller_mjcf}
@@ -767,6 +791,26 @@ def _check_interlock(scene: Scene) -> None:
         interlock_class(lock.type)
     except SceneError as exc:
         raise SceneError(f"{p}: {exc}") from None
+
+
+def _check_neighbour(scene: Scene) -> None:
+    """[neighbour]'s schedule and numbers; its file and envelope are checked as a run starts."""
+    p, neighbour = scene.path, scene.neighbour
+    if neighbour is None:
+        return
+    if not neighbour.schedule:
+        raise SceneError(f"{p}: 'neighbour.schedule' needs at least one step {{ t = 0.0, q = [travel, slew, luff] }}")
+    times = [step.t for step in neighbour.schedule]
+    for i in range(1, len(times)):
+        if not times[i] > times[i - 1]:
+            raise SceneError(f"{p}: 'neighbour.schedule[{i}]' t = {times[i]:g} s must come after schedule[{i - 1}]'s "
+                             f"{times[i - 1]:g} s")
+    if times[0] < 0:
+        raise SceneError(f"{p}: 'neighbour.schedule[0]' t must be >= 0 s, got {times[0]:g}")
+    if not neighbour.bandwidth > 0:
+        raise SceneError(f"{p}: 'neighbour.bandwidth' must be > 0 rad/s, got {neighbour.bandwidth}")
+    if not neighbour.report_delay >= 0:
+        raise SceneError(f"{p}: 'neighbour.report_delay' must be >= 0 s, got {neighbour.report_delay}")
 
 
 def _check_stockpile(scene: Scene) -> None:

@@ -173,17 +173,21 @@ class Machine:
         self.belt_scale, self.wheel_motor = read_instruments(self.model, self.path)
         self.collision_shapes = read_collision_shapes(self.model, self.path, int(self.model.site_bodyid[self.cp_site]))
 
-    def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False) -> mujoco.MjModel:
+    def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False,
+                      neighbour: Path | None = None) -> mujoco.MjModel:
         """A physics-only copy of the model (no visual geoms) at `timestep` s (None: the file's).
 
-        `rigid_body_only` leaves only what M and the bias forces need (`Edits`). Raises
+        `rigid_body_only` leaves only what M and the bias forces need (`Edits`); `neighbour`, a
+        second machine's MJCF, is attached after this one (its names prefixed). Raises
         ModelError if deleting the visual geoms changed a mass or an inertia: the model contract
         keeps masses in `<inertial>`.
         """
-        edits = Edits(payloads=self.payloads, timestep=timestep, physics_only=True, rigid_body_only=rigid_body_only)
+        edits = Edits(payloads=self.payloads, timestep=timestep, physics_only=True, rigid_body_only=rigid_body_only,
+                      neighbour=neighbour)
         model = compile_model(self.path, edits)
         for field in ("body_mass", "body_inertia", "body_ipos"):
-            if not np.array_equal(getattr(model, field), getattr(self.model, field)):
+            own = getattr(model, field)[: self.model.nbody]  # a neighbour's bodies come after this machine's
+            if not np.array_equal(own, getattr(self.model, field)):
                 raise ModelError(
                     f"{self.path}: its visual geoms change '{field}': give every body an <inertial> "
                     "and the visual geoms no mass (model contract)"

@@ -83,6 +83,8 @@ class Edits:
             controller's belief asks for nothing else.
         picture: how MuJoCo draws the model offscreen (a video's pictures): the framebuffer's
             size and multisampling, and a sky where the file has none; None keeps the file's.
+        neighbour: a second machine's MJCF, attached to the world with every name prefixed
+            NEIGHBOUR: one model holds both machines, the first's joints and actuators first.
     """
 
     payloads: Sequence[Payload] = ()
@@ -93,7 +95,10 @@ class Edits:
     physics_only: bool = False
     rigid_body_only: bool = False
     picture: Picture | None = None
+    neighbour: Path | None = None
 
+
+NEIGHBOUR = "neighbour/"  # the prefix of every name of an attached second machine
 
 _RIGID_BODY_ONLY = (
     mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
@@ -125,6 +130,8 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
                 inertia=[_POINT_INERTIA] * 3,
                 explicitinertial=True,
             )
+        if edits.neighbour is not None:
+            _attach(spec, edits.neighbour)
         if edits.stockpile is not None:
             _add_stockpile(spec, edits.stockpile, edits.stockpile_drawing, textured=edits.stockpile_texture)
         if edits.timestep is not None:
@@ -141,6 +148,17 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
     except ValueError as exc:
         first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
         raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
+
+
+def _attach(spec: mujoco.MjSpec, path: Path) -> None:
+    """The machine of the MJCF at `path` on the world of `spec`, its names prefixed NEIGHBOUR."""
+    if not path.is_file():
+        raise ModelError(f"{path}: the neighbour's MJCF file not found")
+    other = mujoco.MjSpec.from_file(str(path))
+    bodies = other.worldbody.bodies
+    if len(bodies) != 1:
+        raise ModelError(f"{path}: a neighbour's world must hold one body, its machine; it holds {len(bodies)}")
+    spec.worldbody.add_frame().attach_body(bodies[0], NEIGHBOUR, "")
 
 
 def _add_stockpile(spec: mujoco.MjSpec, pile: Heights, drawing: Drawing | None, *, textured: bool) -> None:

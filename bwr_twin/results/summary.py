@@ -39,7 +39,7 @@ def summary_table(metrics: dict) -> str:
         lines.append(scan_line("the benches planned on the scanned pile", scan["plan_start"]))
     collision = metrics.get("collision")
     if collision is not None:
-        lines.append(clearance_line(collision))
+        lines += clearance_line(collision).splitlines()
         lines += [f"warning: {contact_line(contact)}" for contact in collision["contacts"]]
         if collision["interventions"]:
             lines.append("interlock: " + ", ".join(
@@ -59,12 +59,19 @@ def scan_line(when: str, known: dict) -> str:
 
 
 def clearance_line(collision: dict) -> str:
-    """The least clearance of each collision shape to the pile (bwr_twin.collision.monitor)."""
+    """The least clearance of each collision shape to the pile (bwr_twin.collision.monitor), and
+    of the nearest pair of shapes to a neighbour's (bwr_twin.collision.machines)."""
     watch = collision["watch_m"]
     parts = [f"{part} {'>= ' if least['clearance_m'] >= watch else ''}{least['clearance_m']:.2f} m"
              + (f" @ {least['time_s']:.1f} s" if least["clearance_m"] < watch else "")
              for part, least in collision["pile"].items()]
-    return "least clearance to the pile: " + ", ".join(parts)
+    lines = ["least clearance to the pile: " + ", ".join(parts)] if parts else []
+    machines = collision.get("machines")
+    if machines:  # the nearest pair of the two machines' shapes
+        pair, least = min(machines.items(), key=lambda item: item[1]["clearance_m"])
+        lines.append(f"least clearance to the neighbour: {pair} " + (
+            f"{least['clearance_m']:.2f} m @ {least['time_s']:.1f} s" if least["clearance_m"] < watch else f">= {watch:.2f} m"))
+    return "\n".join(lines)
 
 
 def contact_line(contact: dict) -> str:

@@ -24,7 +24,8 @@ import numba
 import numpy as np
 
 from bwr_twin.collision.guard import Guard
-from bwr_twin.collision.monitor import PileClearance
+from bwr_twin.collision.machines import MachineClearance
+from bwr_twin.collision.monitor import WATCH, PileClearance
 from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
@@ -36,6 +37,7 @@ from bwr_twin.sensing.rate_instruments import rate_instruments, rate_loop_reads_
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
+from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.fault_report import fault_metrics
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
@@ -73,6 +75,8 @@ def lockstep_key(scene: Scene) -> tuple:
         scene.sensing,
         scene.faults,
         scene.interlock,
+        # one neighbour's file and drives; each run follows its own schedule
+        (scene.neighbour.mjcf, scene.neighbour.bandwidth, scene.neighbour.report_delay) if scene.neighbour else None,
     )
 
 
@@ -172,6 +176,9 @@ class Lockstep:
             reclaim's rate control reads them unless [sensing] rate_signals is "exact".
         collision: the machine's collision shapes against the runs' piles
             (bwr_twin.collision.monitor), or None without a pile or shapes.
+        neighbour: a second machine on the rail and its schedule (bwr_twin.sim.neighbour), or
+            None; `machines` the two machines' shapes against each other
+            (bwr_twin.collision.machines), or None.
         interlock: the anti-collision interlock and the reference it paces
             (bwr_twin.collision.guard), or None.
         faults: the scene's scheduled faults (bwr_twin.sensing.faults); `faults.acting(k)` says
@@ -208,8 +215,9 @@ class Lockstep:
         self.tracking = tracking
         self.samples, self.time = tracking.samples, tracking.time
 
+        self.neighbour = Neighbour(scenes, period) if scene.neighbour is not None else None
         self._plant = plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep,
-                                    control_period=period, nthread=self.nthread)
+                                    control_period=period, nthread=self.nthread, neighbour=self.neighbour)
         self._encoders = Encoders(parameters, period, tracking.start)
         self.faults = faults = Faults(scene.faults, parameters.seed, period)
         self._applied = np.zeros((runs, 3))  # the drive forces a tripped drive leaves of the command
@@ -221,6 +229,14 @@ class Lockstep:
         check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
         self.collision = (PileClearance(machine.collision_shapes, surface, runs, period)
                           if surface is not None and machine.collision_shapes else None)
+        self.machines = None
+        if self.neighbour is not None:
+            bare = [m.path.name for m in (machine, self.neighbour.machine) if not m.collision_shapes]
+            if bare:
+                raise SceneError(f"{scene.path}: [neighbour]: the machines' clearance needs both to have collision "
+                                 f"shapes, but {' and '.join(bare)} has none (geoms 'collision_<part>' in group 5, "
+                                 "docs/anticollision.md)")
+            self.machines = MachineClearance(machine, self.neighbour.machine, runs, period)
         self.interlock = None
         if scene.interlock is not None:
             if not machine.collision_shapes:
@@ -255,6 +271,20 @@ class Lockstep:
         self.path = tuple(_read_only(rows) for rows in tracking.rows) if tracking.shared else None
         self._measured = (_read_only(observer.q_measured), _read_only(observer.qd_measured))
         self.k = 0
+
+    def _collision_metrics(self, run: int) -> dict:
+        """metrics.json's `collision` object of `run`: the shapes against the pile and the neighbour."""
+        collision = (self.collision.metrics(run) if self.collision is not None
+                     else {"watch_m": WATCH, "pile": {}, "contacts": [], "interventions": [],
+                           "periods": self.k, "measured_periods": 0})
+        if self.interlock is not None:
+            collision["interventions"] = self.interlock.interventions(run)
+        if self.machines is not None:
+            pairs, contacts = self.machines.metrics(run)
+            collision["machines"] = pairs
+            collision["contacts"] = sorted(collision["contacts"] + contacts, key=lambda e: e["time_s"])
+            collision["machine_measured_periods"] = int(self.machines.measured_periods[run])
+        return collision
 
     @property
     def done(self) -> bool:
@@ -323,6 +353,8 @@ class Lockstep:
             self._scan(k, row.q)
         if self.collision is not None:  # ... and the machine's clearance to it
             self.collision.step(k, row.q, row.qd, reclaim.cutter.heights, plant.alive)
+        if self.machines is not None:  # ... and to its neighbour
+            self.machines.step(k, row.q, plant.neighbour_q, plant.alive)
         if reclaim is not None:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
@@ -413,10 +445,8 @@ class Lockstep:
                                           **self.tracking.reclaim_metrics(run, float(self.reclaim.density[run]))}
             if self.scanning is not None:
                 run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
-            if self.collision is not None:
-                run_metrics["collision"] = self.collision.metrics(run)
-                if self.interlock is not None:
-                    run_metrics["collision"]["interventions"] = self.interlock.interventions(run)
+            if self.collision is not None or self.machines is not None:
+                run_metrics["collision"] = self._collision_metrics(run)
             run_metrics["run"] = {
                 "scene": str(scene.path),
                 "mjcf": str(scene.machine.mjcf),

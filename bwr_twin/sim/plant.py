@@ -17,6 +17,7 @@ from mujoco.batch import Batch
 from mujoco.batch import SimulationError as BatchError
 
 from bwr_twin.model.machine import Machine
+from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.parameters import RunParameters
 
 STEPS_PER_CALL = 1000  # physics steps of one Batch.step call: under a second even for 128 runs
@@ -44,17 +45,26 @@ class Plant:
     """
 
     def __init__(self, machine: Machine, parameters: RunParameters, q0: np.ndarray, *, timestep: float,
-                 control_period: float, nthread: int = 0):
+                 control_period: float, nthread: int = 0, neighbour: Neighbour | None = None):
         runs = parameters.runs
-        self.batch = batch = Batch(machine.physics_model(timestep), runs, nthread=nthread)
-        self.qpos = batch.bind("qpos")
-        self.qvel = batch.bind("qvel")
+        model = machine.physics_model(timestep, neighbour=neighbour.machine.path if neighbour else None)
+        self.batch = batch = Batch(model, runs, nthread=nthread)
+        qpos, qvel, actuator_force = batch.bind("qpos"), batch.bind("qvel"), batch.bind("qfrc_actuator")
+        # The machine's joints are the model's first three; a neighbour's the next three.
+        self.qpos, self.qvel, self.drive_force = qpos[:, :3], qvel[:, :3], actuator_force[:, :3]
         self._ctrl = batch.bind("ctrl")
         self._applied = batch.bind("qfrc_applied")
-        self.drive_force = batch.bind("qfrc_actuator")
         ids = list(machine.actuator_ids)
         self._actuators = np.array(ids, dtype=np.int64)  # the drives' columns of ctrl, in joint order
         self._gear = machine.model.actuator_gear[ids, 0].copy()
+        self.neighbour = neighbour
+        if neighbour is not None:
+            self.neighbour_q, self.neighbour_qd = qpos[:, 3:6], qvel[:, 3:6]
+            self._neighbour_bias = batch.bind("qfrc_bias")[:, 3:6]
+            own = neighbour.machine
+            self._neighbour_actuators = np.array(own.actuator_ids, dtype=np.int64) + model.nu - own.model.nu
+            self._neighbour_gear = own.model.actuator_gear[list(own.actuator_ids), 0].copy()
+            self.neighbour_q[:] = neighbour.start
         substeps = round(control_period / timestep)
         # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
         whole, rest = divmod(substeps, STEPS_PER_CALL)
@@ -76,12 +86,17 @@ class Plant:
         self.qpos[:] = q0
         batch.forward()
         self.failures: dict[int, str] = {}
+        self.k = 0  # the control period the next step holds
         self.alive: np.ndarray | None = None  # indices of the runs still stepped; None: all
 
     def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
         """Hold the (runs, 3) drive forces and disturbances, and each run's (runs,) gust on its
         mean wind, for one control period."""
         _hold(drive_force, self._gear, self._actuators, disturbance, self._ctrl, self._applied)
+        if self.neighbour is not None:
+            force = self.neighbour.forces(self.k, self.neighbour_q, self.neighbour_qd, self._neighbour_bias)
+            _drive(force, self._neighbour_gear, self._neighbour_actuators, self._ctrl)
+        self.k += 1
         if self._wind is not None:
             self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
         for steps in self._calls:
@@ -121,6 +136,14 @@ def _hold(drive_force, gear, actuators, disturbance, ctrl, applied):  # pragma: 
         for j in range(3):
             ctrl[r, actuators[j]] = drive_force[r, j] / gear[j]
             applied[r, j] = disturbance[r, j]
+
+
+@numba.njit(cache=True)
+def _drive(force, gear, actuators, ctrl):  # pragma: no cover - compiled
+    """A neighbour's drives' controls (force over gear), for every run."""
+    for r in range(force.shape[0]):
+        for j in range(3):
+            ctrl[r, actuators[j]] = force[r, j] / gear[j]
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,98 @@
+"""A second machine on the rail, in the plant's world: its schedule and its drives' hold on it.
+
+The plant's model holds both machines (bwr_twin.model.spec attaches the neighbour's MJCF, every
+name prefixed): the neighbour's joints and actuators follow the first machine's, and MuJoCo
+steps both in the same lockstep. The neighbour has no controller plug-in: its drives hold each
+run's schedule (one cubic between the steps, at rest at each, as a path's) with a PD on its own
+inertia at its start, critically damped at the scene's bandwidth, its bias forces (gravity)
+compensated, within its drives' force limits. What the automation hears of it is its position
+`report_delay` late (bwr_twin.collision).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numba
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import EnvelopeError
+from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.planning.trajectory import Trajectory
+
+
+class Neighbour:
+    """Every run's second machine: its schedule's reference and its drives' forces.
+
+    Attributes:
+        machine: the neighbour's own compiled model (contract, envelope, kinematics, shapes).
+        start: (runs, 3) where each run's neighbour stands at t = 0 (m, rad, rad).
+        report_delay: s the automation hears its position late.
+    """
+
+    def __init__(self, scenes: Sequence[Scene], period: float):
+        """Raises ModelError for a file that breaks the model contract and EnvelopeError, naming
+        the scene and the schedule's step, for a schedule outside the neighbour's envelope."""
+        section = scenes[0].neighbour
+        self.machine = machine = Machine(section.mjcf)
+        self.period, self.report_delay = period, section.report_delay
+        self._schedules = [_schedule(scene, machine) for scene in scenes]
+        self.start = np.array([schedule.sample(0.0)[0] for schedule in self._schedules])
+        # Each axis a mass-spring-damper of natural frequency w and damping 1 on the inertia it
+        # has at the start (the diagonal of M), the drives' limits the bounds of its force.
+        self._inertia, self._bandwidth = _inertia(machine, self.start[0]), section.bandwidth
+        self._limits = machine.drive_limits
+        self.q_reference = np.zeros((len(scenes), 3))
+
+    def forces(self, k: int, q: np.ndarray, qd: np.ndarray, bias: np.ndarray) -> np.ndarray:
+        """(runs, 3) drive forces for period k from each run's neighbour joints q, qd and bias forces (runs, 3)."""
+        time = k * self.period
+        reference = np.array([schedule.sample(time) for schedule in self._schedules])  # (runs, 3 kinds, 3)
+        self.q_reference[:] = reference[:, 0]
+        out = np.empty_like(q)
+        _pd(reference, q, qd, bias, self._inertia, self._bandwidth, self._limits, out)
+        return out
+
+
+def _schedule(scene: Scene, machine: Machine) -> Trajectory:
+    """A scene's neighbour schedule as a joint-space path; EnvelopeError naming the step."""
+    steps = scene.neighbour.schedule
+    times = np.array([step.t for step in steps])
+    knots = np.array([[step.q[0], *np.radians(step.q[1:])] for step in steps])
+    for i, knot in enumerate(knots):
+        for j, axis in enumerate(AXES):
+            low, high = machine.envelope[j]
+            if not low - 1e-9 <= knot[j] <= high + 1e-9:
+                raise EnvelopeError(f"{scene.path}: 'neighbour.schedule[{i}]' puts {axis} at "
+                                    f"{describe(j, knot[j])}, outside the envelope [{describe(j, low)}, "
+                                    f"{describe(j, high)}] of {machine.path.name}")
+    if len(times) == 1:  # it stands still
+        times, knots = np.array([0.0, 1.0]), np.repeat(knots, 2, axis=0)
+    elif times[0] > 0:  # at rest at its first step until then
+        times, knots = np.concatenate([[0.0], times]), np.concatenate([knots[:1], knots])
+    return Trajectory(times=times, knots=knots, points=machine.fk(knots))
+
+
+def _inertia(machine: Machine, q: np.ndarray) -> np.ndarray:
+    """(3,) the diagonal of the machine's mass matrix at q: each drive's inertia there."""
+    model = machine.model
+    data = mujoco.MjData(model)
+    data.qpos[machine.joint_ids] = q
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    dofs = model.jnt_dofadr[machine.joint_ids]
+    return full[dofs, dofs].copy()
+
+
+@numba.njit(cache=True)
+def _pd(reference, q, qd, bias, inertia, w, limits, out):  # pragma: no cover - compiled
+    """Bias + inertia x (the reference's acceleration + w^2 x the position error + 2 w x the
+    velocity error), within the drives' limits, for every run."""
+    for r in range(q.shape[0]):
+        for j in range(3):
+            force = bias[r, j] + inertia[j] * (reference[r, 2, j] + w * w * (reference[r, 0, j] - q[r, j])
+                                               + 2.0 * w * (reference[r, 1, j] - qd[r, j]))
+            out[r, j] = min(max(force, limits[j, 0]), limits[j, 1])

@@ -1,0 +1,94 @@
+"""A second machine on the rail: one MuJoCo model of both, the neighbour on its schedule, and
+the two machines' shapes measured against each other with MuJoCo's own distance."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import SCENES
+
+from bwr_twin import SceneError
+from bwr_twin.config.scene import load_scene
+from bwr_twin.errors import EnvelopeError
+from bwr_twin.model.machine import Machine
+from bwr_twin.results.summary import summary_table
+from bwr_twin.sim.lockstep import Lockstep, simulate
+
+SCENE = SCENES / "heavy_two_machines.toml"
+# The first machine onto its top bench and resting there while the neighbour closes in.
+SHORT = {"path.via_points": [{"t": 0.0, "p": [-2.780, 0.0, 18.794]}, {"t": 180.0, "p": [-5.698, 18.927, 15.0]},
+                             {"t": 400.0, "p": [-5.698, 18.927, 15.0]}]}
+
+
+@pytest.fixture(scope="module")
+def meeting():
+    return simulate(load_scene(SCENE, SHORT))
+
+
+def test_one_model_holds_both_machines_the_first_machines_joints_first():
+    heavy = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml")
+    model = heavy.physics_model(0.002, neighbour=heavy.path)
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+    assert names == ["travel", "slew", "luff", "neighbour/travel", "neighbour/slew", "neighbour/luff"]
+    assert model.nu == 2 * heavy.model.nu and heavy.model.nq == 3
+    np.testing.assert_array_equal(model.body_mass[heavy.model.nbody:], heavy.model.body_mass[1:])  # the same machine
+    loop = Lockstep([load_scene(SCENE, SHORT)])
+    assert loop._plant.qpos.shape == (1, 3) and loop._plant.neighbour_q.shape == (1, 3)
+    np.testing.assert_allclose(loop._plant.neighbour_q[0], [-190.0, 0.0, 0.0])
+
+
+def test_the_neighbour_follows_its_schedule_on_its_own_drives(meeting):
+    """Its drives hold the schedule: where it stands is its own MuJoCo state, pushed on by the
+    contact's absence (the shapes make none): at the end, within a few centimetres of the last step."""
+    loop = Lockstep([load_scene(SCENE, {**SHORT, "neighbour.schedule": [{"t": 0.0, "q": [-190.0, 0.0, 0.0]},
+                                                                       {"t": 100.0, "q": [-180.0, 10.0, 2.0]}]})])
+    while not loop.done:
+        loop.advance(np.zeros((1, 3)))
+        loop.measure()
+    q = loop._plant.neighbour_q[0]
+    np.testing.assert_allclose(q, [-180.0, np.radians(10.0), np.radians(2.0)], atol=0.05)
+
+
+def test_the_neighbours_wheel_meeting_the_machine_is_a_contact_with_its_time(meeting):
+    collision = meeting.metrics["collision"]
+    (first, *_) = collision["contacts"]
+    assert first["bodies"] == ["tail", "neighbour/wheel"]
+    assert 200.0 < first["time_s"] < 360.0 and first["depth_m"] > 1.0
+    pair = collision["machines"]["tail | neighbour/wheel"]
+    assert pair["clearance_m"] == pytest.approx(-first["depth_m"]) and pair["time_s"] == first["depth_time_s"]
+    assert collision["machines"]["wheel | neighbour/wheel"]["clearance_m"] == 10.0  # never within the watch
+    lines = summary_table(meeting.metrics).splitlines()
+    assert any(line.startswith("warning: collision: the tail met the neighbour/wheel") for line in lines)
+    assert any(line.startswith("least clearance to the neighbour: tail | neighbour/wheel -") for line in lines)
+
+
+def test_the_clearance_is_mujocos_distance_between_the_two_machines_shapes(meeting):
+    """Where the contact began, MuJoCo's distance between the two boxes, on a model of both
+    composed again here, is the reported one: the monitor measures what MuJoCo measures."""
+    from bwr_twin.collision.machines import MachineClearance
+
+    heavy = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml")
+    clearance = MachineClearance(heavy, heavy, 1, 0.01)
+    q = np.array([[-60.0, 0.3, 0.0]])
+    for travel in (-170.0, -125.0, -118.0):
+        clearance.step(0, q, np.array([[travel, 0.0, 0.0]]), None)
+    model, data = clearance.model, mujoco.MjData(clearance.model)
+    tail = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "collision_tail")
+    wheel = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "neighbour/collision_wheel")
+    expected = []
+    for travel in (-170.0, -125.0, -118.0):
+        data.qpos[:6] = [-60.0, 0.3, 0.0, travel, 0.0, 0.0]
+        mujoco.mj_kinematics(model, data)
+        expected.append(min(mujoco.mj_geomDistance(model, data, tail, wheel, 10.0, np.zeros(6)), 10.0))
+    pairs, contacts = clearance.metrics(0)
+    assert expected[0] == 10.0 and expected[1] < 0  # beyond the watch, then in
+    assert pairs["tail | neighbour/wheel"]["clearance_m"] == pytest.approx(min(expected), abs=1e-12)
+    assert ["tail", "neighbour/wheel"] in [contact["bodies"] for contact in contacts]
+
+
+def test_a_schedule_out_of_order_or_envelope_is_refused_naming_the_step(tmp_path):
+    with pytest.raises(SceneError, match=r"'neighbour.schedule\[1\]' t = 0 s must come after schedule\[0\]'s 0 s"):
+        load_scene(SCENE, {"neighbour.schedule": [{"t": 0.0, "q": [0.0, 0.0, 0.0]}, {"t": 0.0, "q": [1.0, 0.0, 0.0]}]})
+    with pytest.raises(EnvelopeError, match=r"'neighbour.schedule\[0\]' puts slew at 150.* outside the envelope"):
+        simulate(load_scene(SCENE, {**SHORT, "neighbour.schedule": [{"t": 0.0, "q": [-190.0, 150.0, 0.0]}]}))
