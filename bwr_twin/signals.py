@@ -61,6 +61,11 @@ RECLAIM = (
     ("belt_scale", "belt_scale_t/h", 1),  # as the machine's instruments read them, NaN without instruments
     ("wheel_current", "wheel_current_A", 1),
 )
+# Signals of a second machine on the rail (bwr_twin.sim.neighbour): 'travel_neighbour_q_actual_m'.
+NEIGHBOUR = (
+    Signal("q_desired", "neighbour_q_desired", "q", "the neighbour's schedule"),
+    Signal("q", "neighbour_q_actual", "q", "the neighbour's true joint position at the period's start"),
+)
 # Columns every run has beyond its signals: time, the CP desired and actual, the wind.
 OTHER_COLUMNS = 1 + 6 + 1
 
@@ -70,13 +75,15 @@ def column_name(signal: Signal, axis: int, axes: tuple[str, ...] = ("travel", "s
     return f"{axes[axis]}_{signal.column}_{UNITS[signal.kind][axis]}"
 
 
-def recorded_values(controller_signals: tuple[Signal, ...] = (), *, reclaim: bool = False) -> int:
-    """Float values a run records a row: the loop's and the controller's signals, the wind, and a
-    stockpile's columns."""
+def recorded_values(controller_signals: tuple[Signal, ...] = (), *, reclaim: bool = False,
+                    neighbour: bool = False) -> int:
+    """Float values a run records a row: the loop's and the controller's signals, the wind, a
+    stockpile's columns and a neighbour's."""
     values = sum(s.width for s in LOOP + tuple(controller_signals)) + 1
-    return values + (sum(width for _, _, width in RECLAIM) if reclaim else 0)
+    return (values + (sum(width for _, _, width in RECLAIM) if reclaim else 0)
+            + (sum(s.width for s in NEIGHBOUR) if neighbour else 0))
 
 
-def csv_columns(controller_signals: tuple[Signal, ...] = (), *, reclaim: bool = False) -> int:
+def csv_columns(controller_signals: tuple[Signal, ...] = (), *, reclaim: bool = False, neighbour: bool = False) -> int:
     """Columns of a run's timeseries.csv."""
-    return recorded_values(controller_signals, reclaim=reclaim) - 1 + OTHER_COLUMNS
+    return recorded_values(controller_signals, reclaim=reclaim, neighbour=neighbour) - 1 + OTHER_COLUMNS

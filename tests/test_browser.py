@@ -263,8 +263,9 @@ def test_the_charts_cursor_follows_the_timeline_and_a_click_seeks_it(four_runs_p
 
 def stands_at(machine, run, t: float) -> bool:
     """Whether a run's machine in the replay stands where `run` stood at time t."""
-    positions, _ = machine.poser.poses(run.at(t).q_actual)
-    return all(np.allclose(frame.position, positions[i], atol=1e-6) for frame, i in zip(machine.bodies, machine.moving))
+    own = machine.own
+    positions, _ = own.poser.poses(run.at(t).q_actual)
+    return all(np.allclose(frame.position, positions[i], atol=1e-6) for frame, i in zip(own.bodies, own.moving))
 
 
 # The short path over four of WAIT_MS: played at the slowest speed (1 x real time), the run cannot

@@ -3,6 +3,8 @@ the two machines' shapes measured against each other with MuJoCo's own distance.
 
 from __future__ import annotations
 
+import time
+
 import mujoco
 import numpy as np
 import pytest
@@ -63,28 +65,26 @@ def test_the_neighbours_wheel_meeting_the_machine_is_a_contact_with_its_time(mee
     assert any(line.startswith("least clearance to the neighbour: tail | neighbour/wheel -") for line in lines)
 
 
-def test_the_clearance_is_mujocos_distance_between_the_two_machines_shapes(meeting):
-    """Where the contact began, MuJoCo's distance between the two boxes, on a model of both
-    composed again here, is the reported one: the monitor measures what MuJoCo measures."""
+def test_the_clearance_is_mujocos_distance_between_the_two_machines_shapes():
+    """Beyond the watch, in reach and in contact: the monitor's clearance of the tail to the
+    neighbour's wheel is MuJoCo's distance between the two boxes, on a model of both posed here."""
     from bwr_twin.collision.machines import MachineClearance
 
     heavy = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml")
-    clearance = MachineClearance(heavy, heavy, 1, 0.01)
-    q = np.array([[-60.0, 0.3, 0.0]])
+    still = np.zeros((1, 3))
     for travel in (-170.0, -125.0, -118.0):
-        clearance.step(0, q, np.array([[travel, 0.0, 0.0]]), None)
-    model, data = clearance.model, mujoco.MjData(clearance.model)
-    tail = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "collision_tail")
-    wheel = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "neighbour/collision_wheel")
-    expected = []
-    for travel in (-170.0, -125.0, -118.0):
+        clearance = MachineClearance(heavy, heavy, 1, 0.01)
+        clearance.step(0, np.array([[-60.0, 0.3, 0.0]]), still, np.array([[travel, 0.0, 0.0]]), still, None)
+        model, data = clearance.model, mujoco.MjData(clearance.model)
         data.qpos[:6] = [-60.0, 0.3, 0.0, travel, 0.0, 0.0]
         mujoco.mj_kinematics(model, data)
-        expected.append(min(mujoco.mj_geomDistance(model, data, tail, wheel, 10.0, np.zeros(6)), 10.0))
-    pairs, contacts = clearance.metrics(0)
-    assert expected[0] == 10.0 and expected[1] < 0  # beyond the watch, then in
-    assert pairs["tail | neighbour/wheel"]["clearance_m"] == pytest.approx(min(expected), abs=1e-12)
-    assert ["tail", "neighbour/wheel"] in [contact["bodies"] for contact in contacts]
+        tail = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "collision_tail")
+        wheel = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "neighbour/collision_wheel")
+        expected = min(mujoco.mj_geomDistance(model, data, tail, wheel, 10.0, np.zeros(6)), 10.0)
+        pairs, contacts = clearance.metrics(0)
+        assert pairs["tail | neighbour/wheel"]["clearance_m"] == pytest.approx(expected, abs=1e-12)
+        assert (["tail", "neighbour/wheel"] in [c["bodies"] for c in contacts]) == (expected <= 0.0)
+    assert expected < 0.0  # the last in contact
 
 
 def test_a_schedule_out_of_order_or_envelope_is_refused_naming_the_step(tmp_path):
@@ -92,3 +92,64 @@ def test_a_schedule_out_of_order_or_envelope_is_refused_naming_the_step(tmp_path
         load_scene(SCENE, {"neighbour.schedule": [{"t": 0.0, "q": [0.0, 0.0, 0.0]}, {"t": 0.0, "q": [1.0, 0.0, 0.0]}]})
     with pytest.raises(EnvelopeError, match=r"'neighbour.schedule\[0\]' puts slew at 150.* outside the envelope"):
         simulate(load_scene(SCENE, {**SHORT, "neighbour.schedule": [{"t": 0.0, "q": [-190.0, 150.0, 0.0]}]}))
+
+
+def test_the_replay_draws_the_neighbour_where_the_run_put_it(meeting, tmp_path):
+    """The run directory keeps the neighbour's schedule and joints; the replay reads them back and
+    poses the neighbour's bodies with its own kinematics, beside the machine's."""
+    from bwr_twin.replay import Plan, Recording, ReplayServer
+    from bwr_twin.replay.geometry import BodyPoser
+    from bwr_twin.results.rundir import read_timeseries, write_run
+
+    write_run(meeting, tmp_path / "run")
+    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    np.testing.assert_allclose(columns["travel_neighbour_q_actual_m"], meeting.neighbour["q"][:, 0], atol=1e-6)
+    recording = Recording.from_run_dir(tmp_path / "run")
+    np.testing.assert_allclose(recording.neighbour_q, Recording.from_result(meeting).neighbour_q, atol=1e-6)
+    planned = Plan.from_scene(load_scene(SCENE, SHORT))
+    np.testing.assert_allclose(planned.neighbour_q_desired[-1], [-125.0, 0.0, 0.0])
+    with ReplayServer(recording, port=0) as server:
+        view = server.view.machines[0]
+        assert view.neighbour is not None and len(view.neighbour.nodes) > 0
+        server.player.seek(300.0)
+        time_index = int(np.searchsorted(recording.plan.time, 300.0))
+        expected, _ = BodyPoser(recording.plan.neighbour).poses(recording.neighbour_q[time_index])
+        deadline = time.monotonic() + 30.0  # the player poses the scene on its own thread
+        while time.monotonic() < deadline:
+            shown = np.array([frame.position for frame in view.neighbour.bodies])
+            if np.allclose(shown, expected[view.neighbour.moving], atol=0.05):
+                break
+            time.sleep(0.05)
+        np.testing.assert_allclose(shown, expected[view.neighbour.moving], atol=0.05)
+
+
+@pytest.fixture(scope="module")
+def interlocked():
+    return simulate(load_scene(SCENES / "heavy_two_machines_interlocked.toml", SHORT))
+
+
+def test_the_interlock_stops_both_machines_short_of_each_other(meeting, interlocked):
+    """The same neighbour that ran its wheel into the machine's tail is stopped, with the machine,
+    beyond the stop zone: no contact, the stop on the tail's clearance to the neighbour, and the
+    neighbour's schedule held from then on."""
+    collision = interlocked.metrics["collision"]
+    assert collision["contacts"] == [] and meeting.metrics["collision"]["contacts"]
+    least = min(pair["clearance_m"] for pair in collision["machines"].values())
+    assert least >= interlocked.scene.interlock.stop
+    stop = next(i for i in collision["interventions"] if i["kind"] == "stop")
+    assert stop["part"] == "tail | neighbour" and stop["predicted_clearance_m"] <= interlocked.scene.interlock.stop
+    after = interlocked.time >= stop["time_s"] + 30.0  # braked to rest well within 30 s
+    schedule = interlocked.neighbour["q_desired"][after]
+    np.testing.assert_array_equal(schedule, schedule[:1].repeat(len(schedule), axis=0))  # held
+    assert np.ptp(interlocked.neighbour["q"][after, 0]) < 0.05
+    assert interlocked.neighbour["q"][-1, 0] < -128.0  # short of the -125 m it was sent to
+
+
+def test_a_later_report_stops_the_machines_sooner(interlocked):
+    """The interlock hears the neighbour report_delay late and allows for what it may cover since."""
+    def stop_time(result):
+        return next(i["time_s"] for i in result.metrics["collision"]["interventions"] if i["kind"] == "stop")
+
+    late = simulate(load_scene(SCENES / "heavy_two_machines_interlocked.toml", {**SHORT, "neighbour.report_delay": 5.0}))
+    assert late.metrics["collision"]["contacts"] == []
+    assert stop_time(late) < stop_time(interlocked)

@@ -11,6 +11,12 @@ by the pace and its acceleration by its square while slowed. The path time is ke
 control periods and a fraction, so that a run the interlock never slows follows the path's rows
 exactly. A bench plan's follower takes the pace itself from the next period on: a move's time
 runs at it, a pass's speed law is scaled by it, the slew braking to it within its acceleration.
+
+With a neighbour on the rail, each shape is also measured against the neighbour where its last
+report put it (`report_delay` late): the interlock sees one more column a shape, its clearance to
+the neighbour less the distance the neighbour may cover before it stands (its reported speed on
+its own shapes' levers over the report's delay and the reaction, then braking at the
+deceleration: it is slowed and stopped by the same pace, bwr_twin.sim.neighbour).
 """
 
 from __future__ import annotations
@@ -20,11 +26,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bwr_twin.collision.monitor import PileClearance
+from bwr_twin.collision.machines import MachineClearance
+from bwr_twin.collision.monitor import PileClearance, levers_of
 from bwr_twin.collision.shapes import CollisionShape
 from bwr_twin.config.plugins import interlock_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import PluginError
+from bwr_twin.model.machine import Machine
 from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.stockpile.surface import Surface
 
@@ -38,36 +46,65 @@ class Guard:
         q, qd, qdd: (runs, 3) the reference of the period.
     """
 
-    def __init__(self, scene: Scene, shapes: Sequence[CollisionShape], surface: Surface, runs: int, period: float,
-                 rows: tuple[np.ndarray, np.ndarray, np.ndarray] | None):
+    def __init__(self, scene: Scene, machine: Machine, surface: Surface, runs: int, period: float,
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray] | None, neighbour: Machine | None = None):
         """`rows`: a path's (samples, 3) positions, velocities and accelerations, which the guard
         follows at the pace; None for a bench plan, whose follower takes the pace itself
-        (bwr_twin.planning.follower), from the next period on."""
+        (bwr_twin.planning.follower), from the next period on. `neighbour`: a second machine's
+        model, measured where its reports put it."""
         settings = scene.interlock
-        self.period = period
-        self.monitor = PileClearance(shapes, surface, runs, period)
+        self.period, self.settings = period, settings
+        self.monitor = PileClearance(machine.collision_shapes, surface, runs, period)
+        parts, levers = self.monitor.parts, self.monitor.levers
+        self.machines = None
+        if neighbour is not None:
+            self.machines = MachineClearance(machine, neighbour, runs, period)
+            parts = parts + [f"{part} | neighbour" for part in self.machines.parts]
+            levers = np.maximum(levers, levers_of(machine.collision_shapes))  # the wheel's too
+            self._neighbour_levers = levers_of(neighbour.collision_shapes)
+            self._late = round(scene.neighbour.report_delay / period)  # periods
+            self._reports = np.zeros((self._late + 1, runs, 2, 3))  # the neighbour's q, qd as reported, a ring
         cls = interlock_class(settings.type)
         self._label = f"{scene.path}: interlock {describe(settings.type, cls)}"  # an engineer's failures are theirs
-        self.interlock = construct(self._label, cls, settings, runs, period, self.monitor.parts, self.monitor.levers)
+        self.interlock = construct(self._label, cls, settings, runs, period, parts, levers)
         self._rows = rows  # the path's (samples, 3) positions, velocities, accelerations
         self.pace = np.ones(runs)
         self._whole = [0] * runs  # path time: whole control periods ...
         self._fraction = [0.0] * runs  # ... and a fraction of one
         self.q, self.qd, self.qdd = (np.zeros((runs, 3)) for _ in range(3))
 
-    def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, known: np.ndarray) -> None:
-        """Period k's pace of every run, from its encoders' (runs, 3) readings and the pile it
-        knows, (runs, ny, nx) m (NaN: never seen); then its reference for the period."""
+    def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, known: np.ndarray,
+               neighbour: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Period k's pace of every run, from its encoders' (runs, 3) readings, the pile it knows,
+        (runs, ny, nx) m (NaN: never seen), and the neighbour's true (q, qd), (runs, 3) each, of
+        which it hears the report of `report_delay` ago; then its reference for the period."""
         monitor, time = self.monitor, round(k * self.period, 9)
         monitor.step(k, q_measured, qd_measured, known, None)
+        clearance = monitor.now.copy()
+        if self.machines is not None:
+            clearance = np.concatenate([clearance, self._to_neighbour(k, q_measured, qd_measured, *neighbour)],
+                                       axis=1)
         interlock = self.interlock
         pace = checked(self._label, "pace", call(self._label, interlock.pace, "pace", time, time, q_measured,
-                                                 qd_measured, monitor.now.copy()), (len(self.pace),), time)
+                                                 qd_measured, clearance), (len(self.pace),), time)
         if not ((pace >= 0.0) & (pace <= 1.0)).all():
             raise PluginError(f"{self._label}: pace() returned {pace} at t = {time:.2f} s; paces lie in [0, 1]")
         self.pace = pace
         if self._rows is not None:
             self._reference()
+
+    def _to_neighbour(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, q: np.ndarray,
+                      qd: np.ndarray) -> np.ndarray:
+        """(runs, parts) each shape's clearance to the neighbour where its report of `report_delay`
+        ago put it, less what the neighbour may cover since and before it stands."""
+        reports = self._reports
+        reports[k % len(reports), :, 0], reports[k % len(reports), :, 1] = q, qd
+        reported = reports[max(k - self._late, 0) % len(reports)]
+        self.machines.step(k, q_measured, qd_measured, reported[:, 0], reported[:, 1], None)
+        s = self.settings
+        speed = np.abs(reported[:, 1]) @ self._neighbour_levers
+        covered = speed * (self._late * self.period + s.reaction) + speed**2 / (2.0 * s.deceleration)
+        return self.machines.nearest() - covered[:, None]
 
     def _reference(self) -> None:
         """Each run's reference at its path time: the rows between which it lies, interpolated;

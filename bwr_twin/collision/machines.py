@@ -6,20 +6,26 @@ pile, not the other machine.
 The distances are MuJoCo's own (`mj_geomDistance`) between the two machines' boxes and capsules,
 posed by `mj_kinematics` on a model of both (the first machine's file with the neighbour's
 attached, bwr_twin.model.spec) that nothing steps: the plant keeps the state. A run's pairs are
-measured only while the machines' slew axes are within both reaches and WATCH of each other;
-farther, every pair is at least WATCH apart.
+measured only while the machines' carriages are within both reaches and WATCH of each other
+(farther, every pair is at least WATCH apart), and then a pair again only once the two machines
+may have moved RECHECK of its clearance (or depth) measured last, and at least FLOOR of it: no
+pair closes or opens faster than both machines' shapes move, each at most its joints' speeds on
+its levers. Unlike the pile, which the wheel digs, nothing else changes a pair's clearance: two
+machines at rest are not measured again.
 """
 
 from __future__ import annotations
 
 import mujoco
+import numba
 import numpy as np
 
-from bwr_twin.collision.monitor import WATCH
+from bwr_twin.collision.monitor import RECHECK, WATCH, levers_of
 from bwr_twin.collision.shapes import COLLISION_GROUP, PREFIX
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import NEIGHBOUR, Edits, compile_model
 
+FLOOR = 0.05  # m: the clearance or depth below which a pair is measured again once moved RECHECK of FLOOR
 _REACH_SAMPLES = 24  # slew and luff angles at which a machine's reach is taken
 
 
@@ -28,6 +34,8 @@ class MachineClearance:
 
     Attributes:
         pairs: each pair's names, (the machine's part, the neighbour's part).
+        parts: the machine's parts, in order; `nearest()` gives each one's clearance to the neighbour.
+        now: (runs, pairs) m this period (WATCH where the machines are farther apart).
         least, least_time: (runs, pairs) the least clearance so far (m, at most WATCH) and when (s).
     """
 
@@ -38,37 +46,55 @@ class MachineClearance:
         own = _shapes(model, PREFIX)
         other = _shapes(model, NEIGHBOUR + PREFIX)
         self.pairs = [(a, b) for a in own for b in other]
+        self.parts = list(own)
+        self._part_of = np.array([self.parts.index(a) for a, _ in self.pairs], dtype=np.int64)
         self._geoms = np.array([(own[a], other[b]) for a, b in self.pairs], dtype=np.int64).reshape(-1, 2)
         (reach, base), (other_reach, other_base) = (_reach(model, machine, own.values(), 0),
                                                     _reach(model, neighbour, other.values(), 3))
         self._reach, self._offset = reach + other_reach, base - other_base
+        self.now = np.full((runs, len(self.pairs)), WATCH)
         self.least = np.full((runs, len(self.pairs)), WATCH)
         self.least_time = np.zeros((runs, len(self.pairs)))
         self._events: list[list[dict]] = [[] for _ in range(runs)]
         self._open = np.full((runs, len(self.pairs)), -1, dtype=np.int64)
         self._fromto = np.zeros(6)
+        self._levers = (levers_of(machine.collision_shapes), levers_of(neighbour.collision_shapes))
+        self._measured = np.full((runs, len(self.pairs)), WATCH)  # each pair's last measure
+        self._moved = np.full((runs, len(self.pairs)), np.inf)  # m each pair may have closed since: measure at once
+        self._due = np.zeros((runs, len(self.pairs)), dtype=np.bool_)  # the pairs to measure this period
+        self._all = np.arange(runs)
         self.measured_periods = np.zeros(runs, dtype=np.int64)
 
-    def step(self, k: int, q: np.ndarray, neighbour_q: np.ndarray, runs: np.ndarray | None) -> None:
-        """Period k: the machines where the true joints q and neighbour_q (runs, 3) put them;
-        only the `runs` given (None: all)."""
-        order = range(len(q)) if runs is None else runs
+    def step(self, k: int, q: np.ndarray, qd: np.ndarray, neighbour_q: np.ndarray, neighbour_qd: np.ndarray,
+             runs: np.ndarray | None) -> None:
+        """Period k: the machines where joints q and neighbour_q (runs, 3) put them, moving at qd
+        and neighbour_qd; only the `runs` given (None: all)."""
+        order = self._all if runs is None else runs
+        due = self._due
+        if not _bound(order, q, qd, neighbour_q, neighbour_qd, self._levers[0], self._levers[1], self.period,
+                      self._offset, self._reach, WATCH, RECHECK, FLOOR, self._moved, self._measured, self.now, due):
+            return
         model, data, time = self.model, self.data, round(k * self.period, 9)
-        for run in order:
-            if abs(q[run, 0] - neighbour_q[run, 0] + self._offset) > self._reach + WATCH:
-                if (self._open[run] >= 0).any():
-                    self._record(run, np.full(len(self.pairs), WATCH), time)
-                continue
+        for run in np.flatnonzero(due.any(axis=1)).tolist():
             self.measured_periods[run] += 1
             data.qpos[:3], data.qpos[3:6] = q[run], neighbour_q[run]
             mujoco.mj_kinematics(model, data)
-            distances = np.array([mujoco.mj_geomDistance(model, data, a, b, WATCH, self._fromto) for a, b in self._geoms])
-            self._record(run, np.minimum(distances, WATCH), time)
+            measured = self._measured[run]
+            for pair in np.flatnonzero(due[run]).tolist():
+                a, b = self._geoms[pair]
+                measured[pair] = min(mujoco.mj_geomDistance(model, data, a, b, WATCH, self._fromto), WATCH)
+            self.now[run, due[run]] = measured[due[run]]
+            if _changed(measured, self.least[run], self.least_time[run], self._open[run], time):
+                self._contacts(run, measured, time)
 
-    def _record(self, run: int, distances: np.ndarray, time: float) -> None:
-        closer = distances < self.least[run]
-        self.least[run, closer] = distances[closer]
-        self.least_time[run, closer] = time
+    def nearest(self) -> np.ndarray:
+        """(runs, parts) this period's clearance of each of the machine's parts to the neighbour's nearest."""
+        out = np.full((len(self.now), len(self.parts)), WATCH)
+        np.minimum.at(out.T, self._part_of, self.now.T)
+        return out
+
+    def _contacts(self, run: int, distances: np.ndarray, time: float) -> None:
+        """Open, deepen or close run `run`'s contacts from its pairs' latest measures."""
         events = self._events[run]
         for pair in np.flatnonzero((distances <= 0.0) | (self._open[run] >= 0)):
             index, depth = self._open[run, pair], float(-distances[pair])
@@ -116,3 +142,47 @@ def _reach(model: mujoco.MjModel, machine: Machine, geoms, first: int) -> tuple[
             along = np.abs(data.geom_xpos[geoms, 0] - data.xpos[carriage, 0])
             reach = max(reach, float((along + model.geom_rbound[geoms]).max(initial=0.0)))
     return reach, float(data.xpos[carriage, 0])
+
+
+@numba.njit(cache=True)
+def _bound(order, q, qd, other_q, other_qd, levers, other_levers, period, offset, reach, watch, recheck, floor, moved,
+           measured, now, due):  # pragma: no cover - compiled
+    """Each run's pairs this period, bounded by the machines' motion since each was measured:
+    `now` at least its last measure less that motion; `due` the pairs to measure (all of a run
+    whose machines came within reach; none of one farther apart, each pair then `watch`). Whether
+    any is due."""
+    any_due = False
+    for run in order:
+        due[run, :] = False
+        if abs(q[run, 0] - other_q[run, 0] + offset) > reach + watch:
+            now[run, :] = watch
+            moved[run, :] = np.inf
+            continue
+        closing = 0.0
+        for j in range(3):
+            closing += abs(qd[run, j]) * levers[j] + abs(other_qd[run, j]) * other_levers[j]
+        closing *= period
+        for p in range(moved.shape[1]):
+            moved[run, p] += closing
+            last = measured[run, p]
+            if moved[run, p] >= recheck * max(abs(last), floor):
+                due[run, p] = True
+                moved[run, p] = 0.0
+                any_due = True
+            else:
+                now[run, p] = min(last - moved[run, p], watch)
+    return any_due
+
+
+@numba.njit(cache=True)
+def _changed(measured, least, least_time, open_, time):  # pragma: no cover - compiled
+    """A run's least clearances updated from its pairs' latest measures (the unmeasured ones'
+    last: no nearer); whether a contact opens, goes on or closes."""
+    contacts = False
+    for p in range(len(measured)):
+        if measured[p] < least[p]:
+            least[p] = measured[p]
+            least_time[p] = time
+        if measured[p] <= 0.0 or open_[p] >= 0:
+            contacts = True
+    return contacts

@@ -48,7 +48,7 @@ class PileClearance:
         self._joints = np.array([s.mount.joints for s in checked], dtype=np.int64)
         self._anchor = checked[0].mount.anchor if checked else np.zeros((3, 3))
         self._axis = checked[0].mount.axis if checked else np.zeros((3, 3))
-        self.levers = _levers(checked)
+        self.levers = levers_of(checked)
         self.now = np.full((runs, n), WATCH)
         self._measured = np.full((runs, n), WATCH)  # each shape's last measure
         self._moved = np.full(runs, np.inf)  # m the machine may have moved since: measure at once
@@ -100,7 +100,7 @@ class PileClearance:
                 "interventions": [], "periods": int(self.periods[run]), "measured_periods": int(self.checks[run])}
 
 
-def _levers(shapes: Sequence[CollisionShape]) -> np.ndarray:
+def levers_of(shapes: Sequence[CollisionShape]) -> np.ndarray:
     """(3,): m a unit of each joint's speed moves any shape's corner at most: 1 for the travel,
     the farthest corner's distance from the slew axis and from the luff axis (at q = 0)."""
     levers = np.array([1.0, 0.0, 0.0])

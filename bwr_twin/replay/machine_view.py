@@ -1,5 +1,6 @@
 """One run in the replay's scene: its machine (the visual geoms of its moving bodies, posed by
-MuJoCo's kinematics from the run's joint values) and its CP trail, in the run's colour.
+MuJoCo's kinematics from the run's joint values), a second machine on its rail if the scene has
+one, and its CP trail, in the run's colour.
 
 Everything hangs under the scene frame /runs/<k>, which carries the run's place (moved aside when
 runs stand side by side) and whether it is shown. The trail is sent in chunks, each once and then
@@ -13,6 +14,7 @@ from typing import Literal
 import numpy as np
 import viser
 
+from bwr_twin.model.machine import Machine
 from bwr_twin.replay.geometry import BodyPoser, VisualGeom, body_vertices, visual_geoms
 from bwr_twin.replay.recording import Instant, Plan, Recording, decimate
 from bwr_twin.replay.rooted import Rooted
@@ -30,28 +32,24 @@ def segments(points: np.ndarray) -> np.ndarray:
     return np.stack([points[:-1], points[1:]], axis=1).astype(np.float32)
 
 
-class MachineView(Rooted):
-    """Run k's machine at the start pose of `plan`, painted as `paint` says (`MachineView.paint`)
-    with `colour`, its trail's; `attach` adds the recording's trail, `show` poses a time of it."""
+class Meshes:
+    """One machine's moving bodies as scene nodes under `prefix`, posed by MuJoCo's kinematics."""
 
-    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, colour: tuple[int, int, int],
-                 paint: tuple[Paint, float] = ("model", 1.0)):
-        self.scene, self.prefix, self.colour = scene, f"/runs/{k}", colour
-        self.poser = BodyPoser(plan.machine)
+    def __init__(self, scene: viser.SceneApi, machine: Machine, prefix: str, merged: bool,
+                 colour: tuple[int, int, int], paint: tuple[Paint, float]):
+        self.scene, self.prefix, self.colour = scene, prefix, colour
+        self.poser = BodyPoser(machine)
         self.moving = [i for i, moves in enumerate(self.poser.moving) if moves]
         moving = {self.poser.names[i] for i in self.moving}
-        self.geoms = [geom for geom in visual_geoms(plan.machine) if geom.body in moving]
-        self.root = scene.add_frame(self.prefix, show_axes=False)
-        self.bodies = [scene.add_frame(f"{self.prefix}/{self.poser.names[i]}", show_axes=False) for i in self.moving]
-        # The first run has a node per geom, as MuJoCo sizes it; the others, which mostly show in one
-        # colour, a node per body and MJCF colour: a fraction of the nodes to send and draw.
+        self.geoms = [geom for geom in visual_geoms(machine) if geom.body in moving]
+        self.bodies = [scene.add_frame(f"{prefix}/{self.poser.names[i]}", show_axes=False) for i in self.moving]
+        # `merged`: a node per body and MJCF colour rather than per geom: a fraction of the nodes
+        # to send and draw, for a machine that mostly shows in one colour.
         keys = [(geom.body, geom.rgba, geom.type in ("box", "plane", "mesh")) for geom in self.geoms]
-        self.parts = ([[geom] for geom in self.geoms] if k == 0 else
+        self.parts = ([[geom] for geom in self.geoms] if not merged else
                       [[g for g, key in zip(self.geoms, keys) if key == first] for first in dict.fromkeys(keys)])
         self.nodes = [self._add_part(part, paint) for part in self.parts]
         self.painted = paint
-        self.recording: Recording | None = None
-        self.place(plan.q_desired[0])
 
     def _add_part(self, part: list[VisualGeom], paint: tuple[Paint, float]):
         """One mesh node: a geom in its own frame, or several geoms of one body and colour merged."""
@@ -80,9 +78,7 @@ class MachineView(Rooted):
             frame.position = positions[i]
             frame.wxyz = orientations[i]
 
-    def paint(self, kind: Paint, opacity: float = GHOST_OPACITY) -> None:
-        """Draw the machine in its MJCF colours, or all in the run's colour, solid or seen through
-        with `opacity`."""
+    def paint(self, kind: Paint, opacity: float) -> None:
         if (kind, opacity) == self.painted:
             return
         for part, node in zip(self.parts, self.nodes):
@@ -94,6 +90,44 @@ class MachineView(Rooted):
         if kind == "model":
             return rgb(geom.rgba), geom.rgba[3] if geom.rgba[3] < 1.0 else None
         return self.colour, opacity if kind == "translucent" else None
+
+
+class MachineView(Rooted):
+    """Run k's machine at the start pose of `plan`, painted as `paint` says (`MachineView.paint`)
+    with `colour`, its trail's, and the neighbour on its rail where the scene has one;
+    `attach` adds the recording's trail, `show` poses a time of it."""
+
+    def __init__(self, scene: viser.SceneApi, plan: Plan, k: int, colour: tuple[int, int, int],
+                 paint: tuple[Paint, float] = ("model", 1.0)):
+        self.scene, self.prefix, self.colour = scene, f"/runs/{k}", colour
+        self.root = scene.add_frame(self.prefix, show_axes=False)
+        # The first run has a node per geom, as MuJoCo sizes it; the others a node per body and colour.
+        self.own = Meshes(scene, plan.machine, self.prefix, k > 0, colour, paint)
+        self.neighbour = (None if plan.neighbour is None else
+                          Meshes(scene, plan.neighbour, f"{self.prefix}/neighbour", True, colour, paint))
+        self.poser, self.geoms, self.nodes = self.own.poser, self.own.geoms, self.own.nodes
+        self.recording: Recording | None = None
+        self.place(plan.q_desired[0], plan.neighbour_q_desired[0] if plan.neighbour is not None else None)
+
+    def vertices(self, q: np.ndarray, neighbour_q: np.ndarray | None = None) -> np.ndarray:
+        """(v, 3) the machine's vertices at joint values q, and its neighbour's at neighbour_q if
+        given, in world coordinates before any offset (m)."""
+        own = self.own.vertices(q)
+        return own if neighbour_q is None or self.neighbour is None else np.concatenate(
+            [own, self.neighbour.vertices(neighbour_q)])
+
+    def place(self, q: np.ndarray, neighbour_q: np.ndarray | None = None) -> None:
+        """Pose the moving bodies for joint values q, and the neighbour's for neighbour_q."""
+        self.own.place(q)
+        if self.neighbour is not None and neighbour_q is not None:
+            self.neighbour.place(neighbour_q)
+
+    def paint(self, kind: Paint, opacity: float = GHOST_OPACITY) -> None:
+        """Draw the machine (and its neighbour) in its MJCF colours, or all in the run's colour,
+        solid or seen through with `opacity`."""
+        for meshes in (self.own, self.neighbour):
+            if meshes is not None:
+                meshes.paint(kind, opacity)
 
     def attach(self, recording: Recording) -> None:
         """Add the recording's CP trail in chunks, each sent once and then only shown or hidden."""
@@ -125,7 +159,7 @@ class MachineView(Rooted):
         """Pose the machine and its trail for time t (s) of the attached recording; the instant shown."""
         assert self.recording is not None, "attach a recording first"
         instant = self.recording.at(t)
-        self.place(instant.q_actual)
+        self.place(instant.q_actual, instant.neighbour_q)
         last = max(0, int(np.searchsorted(self.trail_time, t, side="right")) - 1)
         complete = last // TRAIL_CHUNK  # chunks wholly before t
         for c in range(min(complete, self.chunks_shown), max(complete, self.chunks_shown)):

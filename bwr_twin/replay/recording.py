@@ -13,6 +13,7 @@ import difflib
 import hashlib
 import json
 import warnings
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -52,6 +53,8 @@ class Plan:
     via_points: np.ndarray  # (k, 3) m
     pile: Surface | None = None  # the stockpile at the start, if the scene has one
     via_stages: tuple[Stage, ...] = ()  # a bench plan's, typed (bwr_twin.planning.follower); () on a path
+    neighbour: Machine | None = None  # a second machine on the rail, if the scene has one
+    neighbour_q_desired: np.ndarray | None = None  # (n, 3) its schedule
 
     @property
     def duration(self) -> float:
@@ -113,6 +116,12 @@ class Plan:
             time = trajectory.times[0] + np.arange(round(trajectory.duration / period) + 1) * period
             q_desired, qd_desired, _ = trajectory.sample(time)
         pile = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
+        neighbour = neighbour_q = None
+        if scene.neighbour is not None:
+            from bwr_twin.sim.neighbour import neighbour_schedule
+
+            neighbour = Machine(scene.neighbour.mjcf)
+            neighbour_q = neighbour_schedule(scene, neighbour).sample(time)[0]
         return cls(
             machine=machine,
             title=scene.path.name,
@@ -124,6 +133,8 @@ class Plan:
             via_points=trajectory.points,
             pile=pile,
             via_stages=tuple(stages),
+            neighbour=neighbour,
+            neighbour_q_desired=neighbour_q,
         )
 
 
@@ -138,6 +149,7 @@ class Instant:
     cp_actual: np.ndarray
     reclaim_rate: float | None = None  # t/h, with a stockpile
     stage: str | None = None  # where a bench plan stands: "pass 3"; None on a path
+    neighbour_q: np.ndarray | None = None  # (3,) a second machine's joints, if the scene has one
 
     @property
     def q_error(self) -> np.ndarray:
@@ -157,6 +169,7 @@ class Recording:
     pile: PileHistory | None = None  # the pile as it was dug, with a stockpile
     controller: str = ""  # the controller's type, as its scene names it: "fuzzy_model", "pid", ...
     scans: Scans | None = None  # the run's laser scans, if its machine scanned the pile
+    neighbour_q: np.ndarray | None = None  # (n, 3) a second machine's joints, if the scene has one
 
     @property
     def q_error(self) -> np.ndarray:
@@ -185,6 +198,7 @@ class Recording:
             cp_actual=blend(self.cp_actual),
             reclaim_rate=float(self.reclaim_rate[k + round(s)]) if self.reclaim_rate is not None else None,
             stage=self.plan.stage(t),
+            neighbour_q=None if self.neighbour_q is None else blend(self.neighbour_q),
         )
 
     @classmethod
@@ -275,11 +289,16 @@ class Recording:
             via_stages=stages,
         )
         q_actual = joints("q_actual")
+        neighbour = scene.get("neighbour")
+        if neighbour is not None:
+            plan = dataclasses.replace(plan, neighbour=Machine(neighbour["mjcf"]),
+                                       neighbour_q_desired=joints("neighbour_q_desired"))
         if scans is not None:
             scans.attach(machine, plan.time, q_actual)
         return cls(plan, q_actual, joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile,
-                   controller=str((scene.get("controller") or {}).get("type", "")), scans=scans)
+                   controller=str((scene.get("controller") or {}).get("type", "")), scans=scans,
+                   neighbour_q=joints("neighbour_q_actual") if neighbour is not None else None)
 
 
 def read_recorded(path: Path) -> dict[str, np.ndarray]:

@@ -201,7 +201,7 @@ class SceneView:
         # What each site's first run draws over its run (runs of one site follow its path, a few
         # centimetres apart): the row's spacing and the camera's framing.
         firsts = [self.site_of.index(s) for s in range(len(self.sites))]
-        extents = [np.concatenate([*site.points, *(self.machines[k].vertices(q) for q in _framing_poses(plans[k]))])
+        extents = [np.concatenate([*site.points, *(self.machines[k].vertices(*q) for q in _framing_poses(plans[k]))])
                    for site, k in zip(self.sites, firsts)]
         offsets = _row(extents, self.sites[0].pile_side) if side_by_side else np.zeros((1, 3))
         for site, offset in zip(self.sites, offsets):
@@ -295,9 +295,11 @@ def _paints(runs: int, sites: int, solid: int | None) -> list[tuple[Paint, float
             for k in range(runs)]
 
 
-def _framing_poses(plan: Plan) -> np.ndarray:
-    """FRAMING_POSES joint values of the plan, evenly in time."""
-    return plan.q_desired[np.linspace(0, len(plan.time) - 1, FRAMING_POSES).astype(int)]
+def _framing_poses(plan: Plan) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """FRAMING_POSES joint values of the plan, evenly in time, each with its neighbour's (or None)."""
+    samples = np.linspace(0, len(plan.time) - 1, FRAMING_POSES).astype(int)
+    neighbour = plan.neighbour_q_desired
+    return [(plan.q_desired[i], None if neighbour is None else neighbour[i]) for i in samples]
 
 
 def _row(extents: Sequence[np.ndarray], pile_side: float) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 from bwr_twin.results.ownership import check_output, mark
-from bwr_twin.signals import LOOP, RECLAIM
+from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM
 from bwr_twin.signals import column_name as signal_column
 from bwr_twin.sim.record import RunResult
 
@@ -36,7 +36,7 @@ PILE_FILE = "pile.npz"
 TIMESERIES_FILE = "timeseries.csv"
 SCENE_FILE = "scene.json"
 
-_LOOP_COLUMNS = {signal.column: signal for signal in LOOP}
+_LOOP_COLUMNS = {signal.column: signal for signal in LOOP + NEIGHBOUR}
 
 
 def column_name(stem: str, axis: int) -> str:
@@ -71,6 +71,11 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
                 for c, coordinate in enumerate("xyz"):
                     names.append(column.format(xyz=coordinate))
                     columns.append(values[:, c])
+    if result.neighbour is not None:
+        for signal in NEIGHBOUR:
+            for j in range(len(AXES)):
+                names.append(signal_column(signal, j))
+                columns.append(result.neighbour[signal.name][:, j])
     return names, np.column_stack(columns)
 
 

@@ -82,8 +82,9 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         cpu += scan_cpu
         # What a run records a row (bwr_twin.signals): float64 values in memory, CSV columns on disk.
         declared = tuple(getattr(controller_class(scene.controller.type), "signals", ()))
-        row_values = recorded_values(declared, reclaim=scene.stockpile is not None)
-        disk += run_rows * csv_columns(declared, reclaim=scene.stockpile is not None) * CSV_VALUE_BYTES
+        groups = {"reclaim": scene.stockpile is not None, "neighbour": scene.neighbour is not None}
+        row_values = recorded_values(declared, **groups)
+        disk += run_rows * csv_columns(declared, **groups) * CSV_VALUE_BYTES
         steps += run_steps
         periods += run_periods
         pile_cells_written += cells

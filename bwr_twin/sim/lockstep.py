@@ -243,8 +243,8 @@ class Lockstep:
                 raise SceneError(f"{scene.path}: [interlock] keeps the machine's collision shapes clear of the pile, "
                                  f"but {machine.path.name} has none (geoms 'collision_<part>' in group 5, "
                                  "docs/anticollision.md)")
-            self.interlock = Guard(scene, machine.collision_shapes, surface, runs, period,
-                                   tracking.rows if tracking.shared else None)
+            self.interlock = Guard(scene, machine, surface, runs, period, tracking.rows if tracking.shared else None,
+                                   neighbour=self.neighbour.machine if self.neighbour is not None else None)
         nan = np.full(runs, np.nan)  # the readings of a machine without instruments
         self._instrument_readings = ((self.instruments.belt_scale, self.instruments.wheel_current)
                                      if self.instruments is not None else (nan, nan))
@@ -254,7 +254,7 @@ class Lockstep:
         self._observer = observer = Observer(
             runs, self.samples, period, round(sim.record_period / period), machine,
             path=tracking.rows if tracking.shared and self.interlock is None else None, wind_mean=parameters.wind_speed,
-            reclaim=self.reclaim is not None)
+            reclaim=self.reclaim is not None, neighbour=self.neighbour is not None)
         observer.q[0], observer.qd[0] = plant.qpos, plant.qvel  # the first period's start
         if not observe:  # one row, whose end state is the next period's start
             row = observer.rows[0]
@@ -332,9 +332,13 @@ class Lockstep:
             self.faults.measured(self.k, row.q_measured, row.qd_measured)
         if self.interlock is not None:  # ... and so does the interlock, which decides this period's reference
             known = self.scanning.survey.z if self.scanning is not None else self.reclaim.cutter.heights
-            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known)
+            plant = self._plant
+            neighbour = (plant.neighbour_q, plant.neighbour_qd) if self.neighbour is not None else None
+            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known, neighbour)
             if not self.tracking.shared:  # a bench plan's follower takes it from the next period on
                 self.tracking.pace = self.interlock.pace
+            if self.neighbour is not None:  # the same pace holds the neighbour's schedule
+                self.neighbour.pace = self.interlock.pace
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 
@@ -354,7 +358,7 @@ class Lockstep:
         if self.collision is not None:  # ... and the machine's clearance to it
             self.collision.step(k, row.q, row.qd, reclaim.cutter.heights, plant.alive)
         if self.machines is not None:  # ... and to its neighbour
-            self.machines.step(k, row.q, plant.neighbour_q, plant.alive)
+            self.machines.step(k, row.q, row.qd, plant.neighbour_q, plant.neighbour_qd, plant.alive)
         if reclaim is not None:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
@@ -373,8 +377,12 @@ class Lockstep:
             applied = self._applied
             applied[...] = row.command
             self.faults.command(k, applied)
+        if row.neighbour is not None:  # where the neighbour stands as the period starts
+            row.neighbour[1][...] = plant.neighbour_q
         plant.step(applied, disturbance, row.gust)
         plant.read(row.q_next, row.qd_next, row.drive_force)
+        if row.neighbour is not None:  # ... and the schedule it held this period
+            row.neighbour[0][...] = self.neighbour.q_reference
         if row.reference is not None:  # a per-run reference changes in place: the record keeps this period's
             for rows, value in zip(row.reference, self.reference_now()):
                 rows[...] = value

@@ -6,7 +6,8 @@ steps both in the same lockstep. The neighbour has no controller plug-in: its dr
 run's schedule (one cubic between the steps, at rest at each, as a path's) with a PD on its own
 inertia at its start, critically damped at the scene's bandwidth, its bias forces (gravity)
 compensated, within its drives' force limits. What the automation hears of it is its position
-`report_delay` late (bwr_twin.collision).
+`report_delay` late (bwr_twin.collision.guard). An interlock's pace holds it too: its schedule's
+clock runs at the pace of its run, as the first machine's path does.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ class Neighbour:
         machine: the neighbour's own compiled model (contract, envelope, kinematics, shapes).
         start: (runs, 3) where each run's neighbour stands at t = 0 (m, rad, rad).
         report_delay: s the automation hears its position late.
+        clock: (runs,) s along each run's schedule; `pace` (runs,) how fast it runs this period.
+        q_reference: (runs, 3) the schedule's position the drives held this period.
     """
 
     def __init__(self, scenes: Sequence[Scene], period: float):
@@ -38,25 +41,31 @@ class Neighbour:
         section = scenes[0].neighbour
         self.machine = machine = Machine(section.mjcf)
         self.period, self.report_delay = period, section.report_delay
-        self._schedules = [_schedule(scene, machine) for scene in scenes]
+        self._schedules = [neighbour_schedule(scene, machine) for scene in scenes]
         self.start = np.array([schedule.sample(0.0)[0] for schedule in self._schedules])
         # Each axis a mass-spring-damper of natural frequency w and damping 1 on the inertia it
         # has at the start (the diagonal of M), the drives' limits the bounds of its force.
         self._inertia, self._bandwidth = _inertia(machine, self.start[0]), section.bandwidth
         self._limits = machine.drive_limits
         self.q_reference = np.zeros((len(scenes), 3))
+        self.clock = np.zeros(len(scenes))
+        self.pace = np.ones(len(scenes))
 
-    def forces(self, k: int, q: np.ndarray, qd: np.ndarray, bias: np.ndarray) -> np.ndarray:
-        """(runs, 3) drive forces for period k from each run's neighbour joints q, qd and bias forces (runs, 3)."""
-        time = k * self.period
-        reference = np.array([schedule.sample(time) for schedule in self._schedules])  # (runs, 3 kinds, 3)
+    def forces(self, q: np.ndarray, qd: np.ndarray, bias: np.ndarray) -> np.ndarray:
+        """(runs, 3) drive forces for this period from each run's neighbour joints q, qd and bias
+        forces (runs, 3), at its schedule's clock (its velocity scaled by the pace, its
+        acceleration by the pace's square); then the clock moves on a pace of a period."""
+        reference = np.array([schedule.sample(t) for schedule, t in zip(self._schedules, self.clock)])
+        reference[:, 1] *= self.pace[:, None]
+        reference[:, 2] *= (self.pace**2)[:, None]
         self.q_reference[:] = reference[:, 0]
         out = np.empty_like(q)
         _pd(reference, q, qd, bias, self._inertia, self._bandwidth, self._limits, out)
+        self.clock += self.pace * self.period
         return out
 
 
-def _schedule(scene: Scene, machine: Machine) -> Trajectory:
+def neighbour_schedule(scene: Scene, machine: Machine) -> Trajectory:
     """A scene's neighbour schedule as a joint-space path; EnvelopeError naming the step."""
     steps = scene.neighbour.schedule
     times = np.array([step.t for step in steps])

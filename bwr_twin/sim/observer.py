@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from bwr_twin.model.machine import Machine
-from bwr_twin.signals import LOOP, RECLAIM, Signal
+from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM, Signal
 from bwr_twin.sim.metrics import Metrics
 from bwr_twin.sim.record import Recorder
 
@@ -30,11 +30,12 @@ class Observer:
             by every run, which the observer reads from `path` itself).
         controller: {name: (BLOCK, runs, width)} the controller's declared signals.
         reclaim: {name: rows} a stockpile's signals (bwr_twin.sim.signals.RECLAIM), or None.
+        neighbour: {name: (BLOCK, runs, 3)} a second machine's signals (bwr_twin.signals.NEIGHBOUR), or None.
     """
 
     def __init__(self, runs: int, samples: int, period: float, record_every: int, machine: Machine, *,
                  path: tuple[np.ndarray, np.ndarray, np.ndarray] | None, wind_mean: np.ndarray,
-                 reclaim: bool):
+                 reclaim: bool, neighbour: bool = False):
         """`path`: the shared reference's (samples, 3) position, velocity and acceleration rows,
         or None for a reference of each run's own."""
         self.runs, self.period, self.machine = runs, period, machine
@@ -42,7 +43,7 @@ class Observer:
         self._wind_mean = wind_mean
         self.metrics = Metrics(runs, machine.drive_limits, machine.envelope, machine.joint_range, period)
         self._record_every = record_every
-        self.recorder = Recorder(samples, record_every, runs, reclaim=reclaim)
+        self.recorder = Recorder(samples, record_every, runs, reclaim=reclaim, neighbour=neighbour)
         self.q, self.qd = np.zeros((BLOCK + 1, runs, 3)), np.zeros((BLOCK + 1, runs, 3))
         (self.q_measured, self.qd_measured, self.command, self.drive_force,
          self.disturbance) = (np.zeros((BLOCK, runs, 3)) for _ in range(5))
@@ -53,13 +54,15 @@ class Observer:
         self.controller: dict[str, np.ndarray] = {}
         self.reclaim = {name: np.zeros((BLOCK, runs) + ((width,) if width > 1 else ()))
                         for name, _, width in RECLAIM} if reclaim else None
+        self.neighbour = {s.name: np.zeros((BLOCK, runs, 3)) for s in NEIGHBOUR} if neighbour else None
         self.start = 0  # the block's first sample
         self.row = 0  # the current period's row
         self.rows = [Row(self, i) for i in range(BLOCK)]  # each row's views, made once
 
     def watch_controller(self, signals: tuple[Signal, ...], samples: int) -> None:
         """Record the controller's declared signals too; before the first period."""
-        self.recorder = Recorder(samples, self._record_every, self.runs, signals, reclaim=self.reclaim is not None)
+        self.recorder = Recorder(samples, self._record_every, self.runs, signals, reclaim=self.reclaim is not None,
+                                 neighbour=self.neighbour is not None)
         self.controller = {s.name: np.zeros((BLOCK, self.runs, s.width)) for s in signals}
         self.rows = [Row(self, i) for i in range(BLOCK)]
 
@@ -119,6 +122,9 @@ class Observer:
         if self.reclaim is not None:
             for name, values in self.reclaim.items():
                 recorder.reclaim[name][at] = values[picked]
+        if self.neighbour is not None:
+            for name, values in self.neighbour.items():
+                recorder.neighbour[name][at] = values[picked]
         fk = self.machine.fk
         cp_error = np.linalg.norm(fk(q_desired) - fk(self.q[picked]), axis=-1)
         self.metrics.add_cp_error(start + picked, cp_error)
@@ -129,7 +135,7 @@ class Row:
     would cost more than writing the row."""
 
     __slots__ = ("q", "qd", "q_next", "qd_next", "q_measured", "qd_measured", "command", "drive_force",
-                 "disturbance", "gust", "reference", "controller", "reclaim")
+                 "disturbance", "gust", "reference", "controller", "reclaim", "neighbour")
 
     def __init__(self, observer: Observer, i: int):
         o = observer
@@ -140,3 +146,5 @@ class Row:
         self.reference = None if o.q_desired is None else (o.q_desired[i], o.qd_desired[i], o.qdd_desired[i])
         self.controller = tuple((name, rows[i]) for name, rows in o.controller.items())
         self.reclaim = None if o.reclaim is None else tuple(rows[i] for rows in o.reclaim.values())
+        # (q_desired, q) of a neighbour's row
+        self.neighbour = None if o.neighbour is None else tuple(o.neighbour[s.name][i] for s in NEIGHBOUR)

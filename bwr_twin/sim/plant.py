@@ -86,7 +86,6 @@ class Plant:
         self.qpos[:] = q0
         batch.forward()
         self.failures: dict[int, str] = {}
-        self.k = 0  # the control period the next step holds
         self.alive: np.ndarray | None = None  # indices of the runs still stepped; None: all
 
     def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
@@ -94,9 +93,8 @@ class Plant:
         mean wind, for one control period."""
         _hold(drive_force, self._gear, self._actuators, disturbance, self._ctrl, self._applied)
         if self.neighbour is not None:
-            force = self.neighbour.forces(self.k, self.neighbour_q, self.neighbour_qd, self._neighbour_bias)
+            force = self.neighbour.forces(self.neighbour_q, self.neighbour_qd, self._neighbour_bias)
             _drive(force, self._neighbour_gear, self._neighbour_actuators, self._ctrl)
-        self.k += 1
         if self._wind is not None:
             self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
         for steps in self._calls:

@@ -14,7 +14,7 @@ import numpy as np
 
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.trajectory import Trajectory
-from bwr_twin.signals import LOOP, RECLAIM, Signal
+from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM, Signal
 
 
 @dataclass
@@ -65,6 +65,8 @@ class RunResult:
     signal_schema: tuple[Signal, ...] = ()  # the controller's, in its order
     reclaim: ReclaimRecord | None = None  # the pile and the reclaim signals, if the scene has a stockpile
     scan: Any = None  # bwr_twin.sensing.outputs.ScanRecord: the scans and the scanned pile, if the machine scans
+    # A second machine on the rail: {"q_desired", "q"} (n, 3) its schedule and its true joints, or None
+    neighbour: dict[str, np.ndarray] | None = None
 
     @property
     def cp_desired(self) -> np.ndarray:
@@ -82,7 +84,7 @@ class Recorder:
     """
 
     def __init__(self, samples: int, every: int, runs: int, controller_signals: tuple[Signal, ...] = (),
-                 reclaim: bool = False):
+                 reclaim: bool = False, neighbour: bool = False):
         self.every = every
         self._keep(samples)
         rows = len(self.samples)
@@ -91,6 +93,7 @@ class Recorder:
         self.wind_speed = np.zeros((rows, runs))
         self.reclaim = {name: np.zeros((rows, runs) + ((width,) if width > 1 else ()))
                         for name, _, width in RECLAIM} if reclaim else None
+        self.neighbour = {s.name: np.zeros((rows, runs, 3)) for s in NEIGHBOUR} if neighbour else None
 
     def _keep(self, samples: int) -> None:
         """Which of `samples` control periods are kept: every `every`-th one, and the last."""
@@ -117,6 +120,8 @@ class Recorder:
         self.wind_speed = grown(self.wind_speed)
         if self.reclaim is not None:
             self.reclaim = {name: grown(values) for name, values in self.reclaim.items()}
+        if self.neighbour is not None:
+            self.neighbour = {name: grown(values) for name, values in self.neighbour.items()}
 
     def end_at(self, samples: int) -> None:
         """The run ends after `samples` control periods, sooner than planned: its last sample is kept."""
@@ -135,9 +140,12 @@ class Recorder:
         rows = self.rows
         share = {name: np.ascontiguousarray(values[:rows, run]) for name, values in self.signals.items()}
         controller = {s.name: share.pop(s.name) for s in self.controller_schema}
+        neighbour = (None if self.neighbour is None
+                     else {name: np.ascontiguousarray(values[:rows, run]) for name, values in self.neighbour.items()})
         return RunResult(scene=scene, machine=machine, trajectory=trajectory, metrics=metrics,
                          time=time[self.samples], wind_speed=self.wind_speed[:rows, run].copy(),
-                         controller_signals=controller, signal_schema=self.controller_schema, **share)
+                         controller_signals=controller, signal_schema=self.controller_schema, neighbour=neighbour,
+                         **share)
 
     def reclaim_share(self, run: int) -> dict[str, np.ndarray]:
         """Run `run`'s reclaim signals (ReclaimRecord's names), over the rows kept."""
