@@ -22,13 +22,11 @@ deceleration: it is slowed and stopped by the same pace, bwr_twin.sim.neighbour)
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
 from bwr_twin.collision.machines import MachineClearance
 from bwr_twin.collision.monitor import PileClearance, levers_of
-from bwr_twin.collision.shapes import CollisionShape
 from bwr_twin.config.plugins import interlock_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import PluginError

@@ -21,8 +21,8 @@ import mujoco
 import numba
 import numpy as np
 
-from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.collision.shapes import read_collision_shapes
+from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.model.dynamics import ChainDynamics
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
 from bwr_twin.sensing.instruments import read_instruments

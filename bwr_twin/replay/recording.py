@@ -9,11 +9,11 @@ run directory keyed by everything that decides its outcome.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import hashlib
 import json
 import warnings
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING

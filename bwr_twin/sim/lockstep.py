@@ -37,8 +37,8 @@ from bwr_twin.sensing.rate_instruments import rate_instruments, rate_loop_reads_
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
-from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.fault_report import fault_metrics
+from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
