@@ -162,8 +162,8 @@ def test_an_interlock_is_refused_where_it_cannot_act(tmp_path):
                                         r"1.0, slow 3.5, warn 3.0"):
         load_scene(path)
     path.write_text('extends = "pid_paper"\n[interlock]\nwarn = 3.0\nslow = 2.0\nstop = 1.0\n')
-    with pytest.raises(Exception, match=r"\[interlock\] keeps the machine clear of the pile, but the scene has "
-                                        r"no \[stockpile\]"):
+    with pytest.raises(Exception, match=r"\[interlock\] keeps the machine clear of the pile and of a neighbour, but "
+                                        r"the scene has neither \[stockpile\] nor \[neighbour\]"):
         load_scene(path)
 
 

@@ -57,14 +57,16 @@ def write_summary(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) ->
 
 def _flat_metrics(metrics: dict) -> dict[str, float]:
     """The numbers of metrics.json, per axis as 'travel.position_error_max' and of the reclaim as
-    'reclaim.mass_t'; with collision shapes, the least clearance to the pile over them and the
-    number of contacts; units in docs/batch.md and docs/contracts.md."""
+    'reclaim.mass_t'; with collision shapes, the least clearance to the pile over them, to a
+    neighbour's, and the number of contacts; units in docs/batch.md and docs/contracts.md."""
     flat = {}
     for name, value in metrics.items():
         if name in AXES or name == "reclaim":
             flat.update({f"{name}.{key}": v for key, v in value.items() if is_number(v)})
         elif name == "collision":
             flat["collision.clearance_min_m"] = min((v["clearance_m"] for v in value["pile"].values()), default=None)
+            if "machines" in value:
+                flat["collision.neighbour_clearance_min_m"] = min(v["clearance_m"] for v in value["machines"].values())
             flat["collision.contacts"] = len(value["contacts"])
         elif is_number(value):
             flat[name] = value

@@ -13,7 +13,7 @@ exactly. A bench plan's follower takes the pace itself from the next period on: 
 runs at it, a pass's speed law is scaled by it, the slew braking to it within its acceleration.
 
 With a neighbour on the rail, each shape is also measured against the neighbour where its last
-report put it (`report_delay` late): the interlock sees one more column a shape, its clearance to
+report put it (`report_delay` late, bwr_twin.sim.neighbour): the interlock sees one more column a shape, its clearance to
 the neighbour less the distance the neighbour may cover before it stands (its reported speed on
 its own shapes' levers over the report's delay and the reaction, then braking at the
 deceleration: it is slowed and stopped by the same pace, bwr_twin.sim.neighbour).
@@ -44,24 +44,24 @@ class Guard:
         q, qd, qdd: (runs, 3) the reference of the period.
     """
 
-    def __init__(self, scene: Scene, machine: Machine, surface: Surface, runs: int, period: float,
+    def __init__(self, scene: Scene, machine: Machine, surface: Surface | None, runs: int, period: float,
                  rows: tuple[np.ndarray, np.ndarray, np.ndarray] | None, neighbour: Machine | None = None):
         """`rows`: a path's (samples, 3) positions, velocities and accelerations, which the guard
         follows at the pace; None for a bench plan, whose follower takes the pace itself
         (bwr_twin.planning.follower), from the next period on. `neighbour`: a second machine's
-        model, measured where its reports put it."""
+        model, measured where its reports put it. Without a pile (`surface` None) the interlock
+        keeps the machine clear of the neighbour alone."""
         settings = scene.interlock
         self.period, self.settings = period, settings
-        self.monitor = PileClearance(machine.collision_shapes, surface, runs, period)
-        parts, levers = self.monitor.parts, self.monitor.levers
+        self.monitor = PileClearance(machine.collision_shapes, surface, runs, period) if surface is not None else None
+        parts, levers = (self.monitor.parts, self.monitor.levers) if self.monitor else ([], np.zeros(3))
         self.machines = None
         if neighbour is not None:
             self.machines = MachineClearance(machine, neighbour, runs, period)
             parts = parts + [f"{part} | neighbour" for part in self.machines.parts]
             levers = np.maximum(levers, levers_of(machine.collision_shapes))  # the wheel's too
             self._neighbour_levers = levers_of(neighbour.collision_shapes)
-            self._late = round(scene.neighbour.report_delay / period)  # periods
-            self._reports = np.zeros((self._late + 1, runs, 2, 3))  # the neighbour's q, qd as reported, a ring
+            self._report_delay = scene.neighbour.report_delay
         cls = interlock_class(settings.type)
         self._label = f"{scene.path}: interlock {describe(settings.type, cls)}"  # an engineer's failures are theirs
         self.interlock = construct(self._label, cls, settings, runs, period, parts, levers)
@@ -74,14 +74,15 @@ class Guard:
     def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, known: np.ndarray,
                neighbour: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Period k's pace of every run, from its encoders' (runs, 3) readings, the pile it knows,
-        (runs, ny, nx) m (NaN: never seen), and the neighbour's true (q, qd), (runs, 3) each, of
-        which it hears the report of `report_delay` ago; then its reference for the period."""
+        (runs, ny, nx) m (NaN: never seen), and the neighbour's joints and speeds as its latest
+        report gives them, (runs, 2, 3); then its reference for the period."""
         monitor, time = self.monitor, round(k * self.period, 9)
-        monitor.step(k, q_measured, qd_measured, known, None)
-        clearance = monitor.now.copy()
+        clearance = np.empty((len(self.pace), 0))
+        if monitor is not None:
+            monitor.step(k, q_measured, qd_measured, known, None)
+            clearance = monitor.now.copy()
         if self.machines is not None:
-            clearance = np.concatenate([clearance, self._to_neighbour(k, q_measured, qd_measured, *neighbour)],
-                                       axis=1)
+            clearance = np.concatenate([clearance, self._to_neighbour(k, q_measured, qd_measured, neighbour)], axis=1)
         interlock = self.interlock
         pace = checked(self._label, "pace", call(self._label, interlock.pace, "pace", time, time, q_measured,
                                                  qd_measured, clearance), (len(self.pace),), time)
@@ -91,17 +92,14 @@ class Guard:
         if self._rows is not None:
             self._reference()
 
-    def _to_neighbour(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, q: np.ndarray,
-                      qd: np.ndarray) -> np.ndarray:
+    def _to_neighbour(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray,
+                      reported: np.ndarray) -> np.ndarray:
         """(runs, parts) each shape's clearance to the neighbour where its report of `report_delay`
         ago put it, less what the neighbour may cover since and before it stands."""
-        reports = self._reports
-        reports[k % len(reports), :, 0], reports[k % len(reports), :, 1] = q, qd
-        reported = reports[max(k - self._late, 0) % len(reports)]
         self.machines.step(k, q_measured, qd_measured, reported[:, 0], reported[:, 1], None)
         s = self.settings
         speed = np.abs(reported[:, 1]) @ self._neighbour_levers
-        covered = speed * (self._late * self.period + s.reaction) + speed**2 / (2.0 * s.deceleration)
+        covered = speed * (self._report_delay + s.reaction) + speed**2 / (2.0 * s.deceleration)
         return self.machines.nearest() - covered[:, None]
 
     def _reference(self) -> None:

@@ -87,6 +87,15 @@ class MachineClearance:
             if _changed(measured, self.least[run], self.least_time[run], self._open[run], time):
                 self._contacts(run, measured, time)
 
+    def clearance_at(self, q: np.ndarray, neighbour_q: np.ndarray) -> float:
+        """m between the two machines' nearest shapes at joint values q and neighbour_q (3,),
+        at most WATCH; no run's record changes."""
+        data = self.data
+        data.qpos[:3], data.qpos[3:6] = q, neighbour_q
+        mujoco.mj_kinematics(self.model, data)
+        return min(min(mujoco.mj_geomDistance(self.model, data, a, b, WATCH, self._fromto) for a, b in self._geoms),
+                   WATCH)
+
     def nearest(self) -> np.ndarray:
         """(runs, parts) this period's clearance of each of the machine's parts to the neighbour's nearest."""
         out = np.full((len(self.now), len(self.parts)), WATCH)

@@ -775,8 +775,9 @@ def _check_interlock(scene: Scene) -> None:
     p, lock = scene.path, scene.interlock
     if lock is None:
         return
-    if scene.stockpile is None:
-        raise SceneError(f"{p}: [interlock] keeps the machine clear of the pile, but the scene has no [stockpile]")
+    if scene.stockpile is None and scene.neighbour is None:
+        raise SceneError(f"{p}: [interlock] keeps the machine clear of the pile and of a neighbour, but the scene "
+                         "has neither [stockpile] nor [neighbour]")
     if not 0 < lock.stop < lock.slow < lock.warn:
         raise SceneError(f"{p}: [interlock] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop {lock.stop}, "
                          f"slow {lock.slow}, warn {lock.warn}")

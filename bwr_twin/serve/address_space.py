@@ -5,8 +5,9 @@ unit and meaning. The server publishes a variable from the value of the same nam
 readings it is given (`AddressSpace.publish`), so a new machine-level variable is one row here
 and one value in the readings. A Double is an analog item of OPC UA Part 8 (AnalogUnitType,
 or AnalogItemType without a unit) with its EURange, given to `build` (bwr_twin.serve.ranges).
-The rows of `INSTRUMENT_VARIABLES` are served only by a run that has the instrument; the
-scanners' profiles and the faults' states are `bwr_twin.serve.sensing`'s.
+The rows of `INSTRUMENT_VARIABLES` are served only by a run that has the instrument, those of
+`NEIGHBOUR_VARIABLES` and `NEIGHBOUR_AXIS_VARIABLES` only by one with a second machine on the
+rail; the scanners' profiles and the faults' states are `bwr_twin.serve.sensing`'s.
 """
 
 from __future__ import annotations
@@ -81,6 +82,17 @@ INSTRUMENT_VARIABLES = (
              "0 before the first period"),
 )
 
+# Served only when the run has a [neighbour] (docs/anticollision.md): what the automation hears of
+# the other machine on the rail, its latest position report, report_delay late.
+NEIGHBOUR_VARIABLES = (
+    Variable("NeighbourReportTime", D, "s", "the simulated time at which the neighbour stood where its latest "
+             "position report says: SimTime less its report delay"),
+)
+NEIGHBOUR_AXIS_VARIABLES = (
+    Variable("NeighbourPosition", D, ("m", "rad"), "the neighbour's position on this axis, as its latest report "
+             "gives it (true at NeighbourReportTime)"),
+)
+
 AXIS_VARIABLES = (
     Variable("EncoderPosition", D, ("m", "rad"), "encoder position, quantised to the scene's resolution"),
     Variable("EncoderVelocity", D, ("m/s", "rad/s"), "encoder velocity, as the scene's encoders give it"),
@@ -143,10 +155,11 @@ class AddressSpace:
     @classmethod
     async def build(cls, server: Server, methods: Mapping[str, Callable],
                     ranges: Mapping[tuple[str, str | None], tuple[float, float]],
-                    instruments: Sequence[str] = ()) -> AddressSpace:
+                    instruments: Sequence[str] = (), neighbour: bool = False) -> AddressSpace:
         """Create Objects/Reclaimer with its variables and `methods` (name -> async handler);
         `ranges`: the EURange (low, high) of every Double, by (variable, axis or None);
-        `instruments`: the names of the INSTRUMENT_VARIABLES the run has."""
+        `instruments`: the names of the INSTRUMENT_VARIABLES the run has; `neighbour`: whether
+        it has a second machine on the rail (NEIGHBOUR_VARIABLES, NEIGHBOUR_AXIS_VARIABLES)."""
         space = cls(server, await server.register_namespace(NAMESPACE_URI), ranges)
         ns = space.namespace
         space.objects[None] = reclaimer = await server.nodes.objects.add_object(ua.NodeId("Reclaimer", ns),
@@ -156,10 +169,12 @@ class AddressSpace:
         for variable in INSTRUMENT_VARIABLES:
             if variable.name in instruments:
                 await space._add_variable(reclaimer, variable, None)
+        for variable in NEIGHBOUR_VARIABLES if neighbour else ():
+            await space._add_variable(reclaimer, variable, None)
         for axis in AXES:
             space.objects[axis] = folder = await reclaimer.add_object(ua.NodeId(f"Reclaimer.{axis_name(axis)}", ns),
                                                                       ua.QualifiedName(axis_name(axis), ns))
-            for variable in AXIS_VARIABLES:
+            for variable in AXIS_VARIABLES + (NEIGHBOUR_AXIS_VARIABLES if neighbour else ()):
                 await space._add_variable(folder, variable, axis)
         step_argument = ua.Argument(Name="n", DataType=ua.NodeId(ua.ObjectIds.UInt32), ValueRank=-1,
                                     Description=ua.LocalizedText("control periods to advance, >= 1"))
@@ -232,7 +247,8 @@ class AddressSpace:
                     await write(self.nodes[name, axis].nodeid, _data_value(axis_value, variant, now))
 
 
-_VARIABLES = {v.name: v for v in MACHINE_VARIABLES + INSTRUMENT_VARIABLES + AXIS_VARIABLES}
+_VARIABLES = {v.name: v for v in MACHINE_VARIABLES + INSTRUMENT_VARIABLES + NEIGHBOUR_VARIABLES + AXIS_VARIABLES
+              + NEIGHBOUR_AXIS_VARIABLES}
 _PYTHON = {D: float, B: bool, S: str, U: int}
 
 

@@ -69,6 +69,10 @@ def eu_ranges(loop: Lockstep) -> dict[tuple[str, str | None], Range]:
         ranges["BeltScale", None] = (0.0, belt_scale_span(loop))
     if instruments is not None and instruments.motor is not None:
         ranges["WheelCurrent", None] = (0.0, wheel_current_span(loop))
+    if loop.neighbour is not None:  # its envelope, and the run's time
+        for j, axis in enumerate(AXES):
+            ranges["NeighbourPosition", axis] = tuple(float(v) for v in loop.neighbour.machine.envelope[j])
+        ranges["NeighbourReportTime", None] = (0.0, float(loop.duration))
     return ranges
 
 

@@ -105,7 +105,8 @@ async def build_address_space(server: Server, clock: Clock) -> AddressSpace:
     twin = clock.twin
     ranges = eu_ranges(twin.loop)
     instruments = [variable.name for variable in INSTRUMENT_VARIABLES if (variable.name, None) in ranges]
-    clock.space = space = await AddressSpace.build(server, clock.methods(), ranges, instruments)
+    clock.space = space = await AddressSpace.build(server, clock.methods(), ranges, instruments,
+                                                   neighbour=twin.loop.neighbour is not None)
     clock.listeners = [await Machinery.build(space, twin.loop.machine), await Alarms.build(space)]
     sensing = await Sensing.build(space, twin)  # the scanners and the faults, if the run has them
     if sensing is not None:

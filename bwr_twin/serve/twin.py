@@ -41,8 +41,9 @@ class Twin:
 
     A run with instruments, scanners or faults reads them too, only as `reading` is built: the
     belt scale (t/h) and wheel current (A) of the last period ("BeltScale", "WheelCurrent"),
-    each scanner's latest scan ("Scans", `LatestScan`s) and each fault's state in the period
-    that starts at SimTime ("Faults", bools in the scene's order).
+    each scanner's latest scan ("Scans", `LatestScan`s), each fault's state in the period
+    that starts at SimTime ("Faults", bools in the scene's order), and a neighbour's latest
+    position report ("NeighbourPosition", m and rad, true at "NeighbourReportTime", s).
 
     Every period's limit switches are read, so that a switch that closes and opens again
     between two publications is still seen: `take_limit_switches` hands over the changes.
@@ -122,6 +123,10 @@ class Twin:
             found["Scans"] = tuple(latest_scan(log) for log in loop.scanning.logs)
         if loop.faults.faults:  # the period of SimTime: at the path's end, the last one advanced
             found["Faults"] = tuple(loop.faults.acting(min(loop.k, loop.samples - 1)))
+        neighbour = loop.neighbour
+        if neighbour is not None:  # its latest report, as the encoders are read
+            found["NeighbourPosition"] = neighbour.reported[0, 0].tolist()
+            found["NeighbourReportTime"] = neighbour.report_time
         return found
 
     def drive_applied(self) -> list[float]:

@@ -330,15 +330,18 @@ class Lockstep:
         self._encoders.measure(row.q, row.qd, row.q_measured, row.qd_measured)
         if self.faults.active:  # the controller sees what the faulty encoders show
             self.faults.measured(self.k, row.q_measured, row.qd_measured)
+        neighbour = self.neighbour
+        if neighbour is not None:  # what the automation hears of the neighbour
+            neighbour.hear(self.k, self._plant.neighbour_q, self._plant.neighbour_qd)
         if self.interlock is not None:  # ... and so does the interlock, which decides this period's reference
-            known = self.scanning.survey.z if self.scanning is not None else self.reclaim.cutter.heights
-            plant = self._plant
-            neighbour = (plant.neighbour_q, plant.neighbour_qd) if self.neighbour is not None else None
-            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known, neighbour)
+            known = (self.scanning.survey.z if self.scanning is not None
+                     else self.reclaim.cutter.heights if self.reclaim is not None else None)
+            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known,
+                                  neighbour.reported if neighbour is not None else None)
             if not self.tracking.shared:  # a bench plan's follower takes it from the next period on
                 self.tracking.pace = self.interlock.pace
-            if self.neighbour is not None:  # the same pace holds the neighbour's schedule
-                self.neighbour.pace = self.interlock.pace
+            if neighbour is not None:  # the same pace holds the neighbour's schedule
+                neighbour.pace = self.interlock.pace
         q_measured, qd_measured = self._measured
         return q_measured[observer.row], qd_measured[observer.row]
 

@@ -33,6 +33,8 @@ class Neighbour:
         report_delay: s the automation hears its position late.
         clock: (runs,) s along each run's schedule; `pace` (runs,) how fast it runs this period.
         q_reference: (runs, 3) the schedule's position the drives held this period.
+        reported: (runs, 2, 3) its joints and speeds (m, rad; m/s, rad/s) as its latest report
+            gives them, `report_delay` late (`hear`); `report_time` (s) when they were true.
     """
 
     def __init__(self, scenes: Sequence[Scene], period: float):
@@ -50,6 +52,18 @@ class Neighbour:
         self.q_reference = np.zeros((len(scenes), 3))
         self.clock = np.zeros(len(scenes))
         self.pace = np.ones(len(scenes))
+        self._late = round(section.report_delay / period)  # control periods
+        self._reports = np.zeros((self._late + 1, len(scenes), 2, 3))  # the true states in transit, a ring
+        self.reported = self._reports[0]
+        self.report_time = 0.0
+
+    def hear(self, k: int, q: np.ndarray, qd: np.ndarray) -> None:
+        """Period k's true joints and speeds (runs, 3) go out; `reported` is the report that
+        arrives now, of report_delay ago (before then, of where it started)."""
+        reports = self._reports
+        reports[k % len(reports), :, 0], reports[k % len(reports), :, 1] = q, qd
+        heard = max(k - self._late, 0)
+        self.reported, self.report_time = reports[heard % len(reports)], heard * self.period
 
     def forces(self, q: np.ndarray, qd: np.ndarray, bias: np.ndarray) -> np.ndarray:
         """(runs, 3) drive forces for this period from each run's neighbour joints q, qd and bias
