@@ -104,6 +104,17 @@ def run(coroutine):
     return asyncio.run(asyncio.wait_for(coroutine, CALL_TIMEOUT))
 
 
+def run_served(scene, session, *options: str):
+    """What `session(url)` returns from a server of `scene` launched for it, which then stops cleanly."""
+    server = Launched(scene, *options)
+    try:
+        found = run(session(server.ready()))
+    finally:
+        status = server.stop()
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+    return found
+
+
 def client(url: str, password: str | None = None) -> Client:
     """An asyncua client of the server at url: anonymous, or the users file's PLC with `password`."""
     connection = Client(url)
@@ -867,12 +878,7 @@ def test_a_bench_reclaim_is_served_with_the_plans_reference(tmp_path):
             references.append((await plc.read("ReferencePosition"))[0])
             return np.array(positions), np.array(references), left, sim_time
 
-    server = Launched(path, "--no-plots")
-    try:
-        positions, references, left, sim_time = run(session(server.ready()))
-    finally:
-        status = server.stop()
-    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+    positions, references, left, sim_time = run_served(path, session, "--no-plots")
 
     times = np.append(np.arange(BENCH_PERIODS), BENCH_PERIODS + BENCH_CHUNK) * period
     np.testing.assert_allclose(references, [approach.sample(t)[0] for t in times], rtol=0, atol=1e-9)

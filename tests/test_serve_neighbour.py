@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from asyncua import ua
-from test_serve import Launched, Plc, analog_variables, client, run
+from test_serve import Plc, analog_variables, client, run_served
 from test_two_machines import SCENE, SHORT
 
 from bwr_twin.config.scene import load_scene
@@ -55,13 +55,7 @@ def served(scene_file):
                 readings[k] = await connection.read_values(nodes)
             return readings, await analog_variables(connection, plc.ns)
 
-    server = Launched(scene_file, "--no-plots")
-    try:
-        found = run(session(server.ready()))
-    finally:
-        status = server.stop()
-    assert status == 0 and "Traceback" not in server.stderr, server.stderr
-    return found
+    return run_served(scene_file, session, "--no-plots")
 
 
 def test_the_neighbours_report_over_opc_ua_is_the_twins_report_delay_late(served, in_process):

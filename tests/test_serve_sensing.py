@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from asyncua import Server, ua
 from conftest import ROOT
-from test_serve import Launched, Plc, analog_variables, client, environment, run, serve_command
+from test_serve import Plc, analog_variables, client, environment, run, run_served, serve_command
 from test_stockpile import SHORT_DIG
 
 from bwr_twin.config.scene import load_scene
@@ -102,13 +102,7 @@ def served(dig_scene):
                     "angles": angles, "fault_description": fault_description, "fault_type": fault_type,
                     "after_reset": after_reset}
 
-    server = Launched(dig_scene, "--no-plots")
-    try:
-        found = run(session(server.ready()))
-    finally:
-        status = server.stop()
-    assert status == 0 and "Traceback" not in server.stderr, server.stderr
-    return found
+    return run_served(dig_scene, session, "--no-plots")
 
 
 def test_the_belt_scale_and_wheel_current_equal_the_twins_at_the_same_period(served, in_process):
