@@ -153,3 +153,19 @@ def test_a_later_report_stops_the_machines_sooner(interlocked):
     late = simulate(load_scene(SCENES / "heavy_two_machines_interlocked.toml", {**SHORT, "neighbour.report_delay": 5.0}))
     assert late.metrics["collision"]["contacts"] == []
     assert stop_time(late) < stop_time(interlocked)
+
+
+def test_the_video_draws_the_neighbour_where_the_run_put_it(meeting):
+    """The video's model holds the neighbour too, posed from the recording beside the machine."""
+    from bwr_twin.replay import Recording
+    from bwr_twin.replay.video_scene import ReplayScene
+
+    recording = Recording.from_result(meeting)
+    scene = ReplayScene([recording], 320, 180)
+    scene.update(300.0)
+    model, data = scene.model, scene.data[0]
+    carriage = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "neighbour/carriage")
+    own = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "carriage")
+    assert data.xpos[carriage, 0] == pytest.approx(recording.at(300.0).neighbour_q[0], abs=1e-9)
+    assert data.xpos[own, 0] == pytest.approx(recording.at(300.0).q_actual[0], abs=1e-9)
+    assert scene.scene.ngeom > 0

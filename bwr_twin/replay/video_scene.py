@@ -11,7 +11,9 @@ need its normals and faces rebuilt for the same picture. A run without a stockpi
 browser's painted pile (bwr_twin.replay.scenery) as the hfield, dug by nothing.
 
 Several runs of one path (one machine file) are drawn together: the first machine solid in its
-MJCF colours, each other translucent in its own colour, each CP trail in its run's colour.
+MJCF colours, each other translucent in its own colour, each CP trail in its run's colour. A
+neighbour on the rail is attached to the model as the plant attaches it, and posed from each
+run's recording beside its machine.
 """
 
 from __future__ import annotations
@@ -92,7 +94,7 @@ class ReplayScene:
         drawing = _Drawing(tuple(rgba(ORE_COLOUR)), float(pile.x[1] - pile.x[0])) if pile else None
         self.model = compile_model(plan.machine.path, Edits(
             stockpile=pile, stockpile_drawing=drawing, stockpile_texture=self._dug is not None,
-            picture=_Picture(width, height)))
+            picture=_Picture(width, height), neighbour=plan.neighbour.path if plan.neighbour is not None else None))
         self.data = [mujoco.MjData(self.model) for _ in self.recordings]
         self.pile_hfield = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_HFIELD, STOCKPILE)
         self.pile_texture = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_TEXTURE, STOCKPILE)
@@ -141,7 +143,9 @@ class ReplayScene:
         """Pose every run, the pile and the markers for time t (s)."""
         instants = [r.at(t) for r in self.recordings]
         for data, instant in zip(self.data, instants):
-            data.qpos[:] = instant.q_actual
+            data.qpos[:3] = instant.q_actual  # the machine's joints first, a neighbour's next
+            if instant.neighbour_q is not None:
+                data.qpos[3:6] = instant.neighbour_q
             mujoco.mj_kinematics(self.model, data)  # positions only; no dynamics needed to draw
         self.pile_changed = self._dug is not None and self._dug.advance(t)
         if self.pile_changed:
