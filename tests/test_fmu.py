@@ -200,3 +200,24 @@ def test_the_importer_can_trim_a_bench_reclaims_slew_speed_in_place_of_its_rate_
     assert fastest > 1e-3  # rad/s: the pass slews
     assert np.abs(half["slew_velocity"][in_pass]).max() == pytest.approx(0.5 * fastest, rel=0.05)
     assert "status 2" in trimmed(0.0)["refused"]
+
+
+def test_a_scene_with_a_neighbour_publishes_its_position_report(tmp_path):
+    """The neighbour's latest position report and its time are outputs, each period's the twin's
+    own in process, bit for bit, from its start at rest to its first metres of travel."""
+    out = tmp_path / "two.fmu"
+    python("-m", "bwr_twin.export", "fmu", "heavy_two_machines", "--out", out)
+    variables = {v.name: v for v in read_model_description(str(out)).modelVariables}
+    names = ("Travel.NeighbourPosition", "Slew.NeighbourPosition", "Luff.NeighbourPosition", "NeighbourReportTime")
+    for name, unit in zip(names, ("m", "rad", "rad", "s")):
+        assert variables[name].causality == "output" and variables[name].unit == unit
+    periods = 6200  # the neighbour sets off at 60 s
+    done = python(ROOT / "tests" / "fmu_checks.py", out, "outputs", periods, *names)
+    fmpy_values = json.loads(done.stdout.strip().splitlines()[-1])["values"]
+    twin = Twin(load_scene(SCENES / "heavy_two_machines.toml"))
+    expected = []
+    for _ in range(periods):
+        twin.advance(np.zeros(3))
+        expected.append([*twin.neighbour_position(), twin.neighbour_report_time()])
+    assert fmpy_values == expected
+    assert expected[-1][0] > expected[0][0] and expected[-1][3] == pytest.approx(periods * 0.01 - 0.5)

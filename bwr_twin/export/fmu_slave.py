@@ -79,6 +79,12 @@ RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, on 
 BELT_SCALE = Signal("BeltScale", "t/h", "the belt scale's reading: the rate the belt transport delay ago, "
                     "with the scale's noise and filter", False)
 WHEEL_CURRENT = Signal("WheelCurrent", "A", "the wheel motor's current as its drive measures it", False)
+# A second machine on the rail, where the scene has a [neighbour] (docs/anticollision.md): what the
+# automation hears of it, its latest position report.
+NEIGHBOUR_POSITION = Signal("NeighbourPosition", ("m", "rad"), "the neighbour's position as its latest report "
+                            "gives it, true at NeighbourReportTime")
+NEIGHBOUR_REPORT_TIME = Signal("NeighbourReportTime", "s", "the simulated time at which the neighbour stood where its "
+                               "latest report says: the time less its report delay", False)
 # A bench reclaim's rate loop, replaceable by the importer's: its trim, and whether it is used.
 TRIM = Signal("SlewSpeedTrim", "1", "the bench plan's slew speed law times this, within the scene's "
               "trim_limits, while SlewSpeedTrimFromInput is true", False)
@@ -168,6 +174,15 @@ class BwrReclaimer(Fmi2Slave):
                 if present is not None:
                     ref = self._stored(signal.name, signal.unit, signal.meaning, Fmi2Causality.output)
                     self._instrument_refs.append((ref, method))
+        self._neighbour = None  # the neighbour's outputs: (its axes' slice, its report time's reference)
+        if self._base.neighbour is not None:
+            first = len(self.vars)
+            for i, axis in enumerate(AXES):
+                self._stored(f"{axis}.{NEIGHBOUR_POSITION.name}", axis_unit(NEIGHBOUR_POSITION, i),
+                             NEIGHBOUR_POSITION.meaning, Fmi2Causality.output)
+            self._neighbour = (slice(first, len(self.vars)),
+                               self._stored(NEIGHBOUR_REPORT_TIME.name, NEIGHBOUR_REPORT_TIME.unit,
+                                            NEIGHBOUR_REPORT_TIME.meaning, Fmi2Causality.output))
         if self._base.reclaim is not None:
             self._trim_ref = self._stored(TRIM.name, TRIM.unit, TRIM.meaning, Fmi2Causality.input)
             self._inputs.add(self._trim_ref)
@@ -287,6 +302,9 @@ class BwrReclaimer(Fmi2Slave):
             now[self._rate_ref] = twin.reclaim_rate()
             for ref, method in self._instrument_refs:
                 now[ref] = getattr(twin, method)()
+        if self._neighbour is not None:
+            axes, report_time = self._neighbour
+            now[axes], now[report_time] = twin.neighbour_position(), twin.neighbour_report_time()
 
     def exit_initialization_mode(self):
         self._build()  # the parameters as the importer left them

@@ -123,11 +123,18 @@ class Twin:
             found["Scans"] = tuple(latest_scan(log) for log in loop.scanning.logs)
         if loop.faults.faults:  # the period of SimTime: at the path's end, the last one advanced
             found["Faults"] = tuple(loop.faults.acting(min(loop.k, loop.samples - 1)))
-        neighbour = loop.neighbour
-        if neighbour is not None:  # its latest report, as the encoders are read
-            found["NeighbourPosition"] = neighbour.reported[0, 0].tolist()
-            found["NeighbourReportTime"] = neighbour.report_time
+        if loop.neighbour is not None:  # its latest report, as the encoders are read
+            found["NeighbourPosition"] = self.neighbour_position()
+            found["NeighbourReportTime"] = self.neighbour_report_time()
         return found
+
+    def neighbour_position(self) -> list[float]:
+        """The neighbour's (3,) joints (m, rad, rad) as its latest report gives them; the run must have one."""
+        return self.loop.neighbour.reported[0, 0].tolist()
+
+    def neighbour_report_time(self) -> float:
+        """s: when the neighbour stood where its latest report says."""
+        return self.loop.neighbour.report_time
 
     def drive_applied(self) -> list[float]:
         """The forces the drives applied over the last period (N, N m); zero before the first."""
