@@ -1,4 +1,5 @@
-"""The plant: the machines as they really are, one per run, and the only owner of their state.
+"""The plant: the machines as they really are, one per run (with a neighbour on its rail where
+the scene has one), and the only owner of their state.
 
 All runs of a lockstep step together through one `mujoco.batch.Batch` of a physics-only copy of
 the machine, on threads that release the GIL. Per-run values go into per-simulation model
@@ -39,6 +40,8 @@ class Plant:
 
     Attributes:
         qpos, qvel: live (runs, 3) views of the true joint state (m, rad; m/s, rad/s).
+        neighbour_q, neighbour_qd: the same of a second machine on the rail, whose drives its
+            `neighbour` (bwr_twin.sim.neighbour) works each period; absent without one.
         drive_force: (runs, 3) forces the actuators applied in the last period (N, N m).
         failures: run index -> why it stopped (MuJoCo's error or warning, or a non-finite state);
             a failed run is no longer stepped, the others go on.
