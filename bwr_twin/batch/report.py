@@ -91,6 +91,7 @@ def write_plots(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) -> l
 _QUANTITIES = (("position", "position_error_max", ""), ("velocity", "velocity_error_max", "/s"),
                ("acceleration", "acceleration_error_max", "/s²"))
 _ANNOTATED_CELLS = 100  # up to this many heat map cells carry their value as text
+MAX_BOXES = 60  # settings a distribution plot draws a box each; more are drawn as one
 
 
 def _magnitude(record: RunRecord, axis: int, key: str) -> float:
@@ -106,6 +107,8 @@ def _distribution_plot(path: Path, sweep: Sweep, done: list[PlannedRun],
     groups: dict[str, list[PlannedRun]] = {}
     for run in done:
         groups.setdefault(", ".join(run.value_labels.values()) or f"{len(done)} runs", []).append(run)
+    if len(groups) > MAX_BOXES:  # drawn scenarios, each its own setting: one distribution of them all
+        groups = {f"{len(done)} runs, {len(groups)} settings": done}
     width = min(24.0, 10.0 + 0.4 * len(groups))  # in: many settings need room for their labels
     fig = Figure(figsize=(width, 9), layout="constrained")
     axes = fig.subplots(3, 3, sharex=True)
