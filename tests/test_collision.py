@@ -13,6 +13,7 @@ from bwr_twin.collision.pile import clearances
 from bwr_twin.collision.shapes import BOX, CAPSULE
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
 
 SPACING = 0.5
@@ -161,22 +162,80 @@ def test_an_interlock_is_refused_where_it_cannot_act(tmp_path):
     with pytest.raises(Exception, match=r"\[interlock\] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop "
                                         r"1.0, slow 3.5, warn 3.0"):
         load_scene(path)
+    path.write_text('extends = "heavy_boom_interlocked"\n[interlock]\nencoder_window = 0.001\n')
+    with pytest.raises(Exception, match=r"'interlock.encoder_window' must span at least a control period \(0.01 s\), "
+                                        r"got 0.001 s"):
+        load_scene(path)
     path.write_text('extends = "pid_paper"\n[interlock]\nwarn = 3.0\nslow = 2.0\nstop = 1.0\n')
     with pytest.raises(Exception, match=r"\[interlock\] keeps the machine clear of the pile and of a neighbour, but "
                                         r"the scene has neither \[stockpile\] nor \[neighbour\]"):
         load_scene(path)
 
 
-def test_the_interlock_sees_what_the_encoders_show():
+LUFF_STUCK = [{"kind": "encoder_stuck", "axis": "luff", "start": 120.0}]
+
+
+def test_without_its_encoder_check_the_interlock_sees_what_the_encoders_show():
     """A luff encoder stuck before the boom nears the pile: the PID, seeing no motion, drives the
-    boom down, and the interlock, reading the same frozen encoder, believes it stands where it was:
-    no intervention, and the twin reports the contact it could not prevent."""
-    stuck = {"faults": [{"kind": "encoder_stuck", "axis": "luff", "start": 120.0}]}
-    result = simulate(load_scene(SCENES / "heavy_boom_interlocked.toml", stuck))
+    boom down, and an interlock that does not check its encoders, reading the same frozen encoder,
+    believes it stands where it was: no intervention, and the twin reports the contact."""
+    result = simulate(load_scene(SCENES / "heavy_boom_interlocked.toml",
+                                 {"faults": LUFF_STUCK, "interlock.encoder_check": False}))
     collision = result.metrics["collision"]
     assert collision["interventions"] == []
     (contact,) = collision["contacts"]
     assert contact["bodies"] == ["boom", "pile"] and contact["time_s"] > 120.0 and contact["end_s"] is None
+
+
+def test_a_stuck_encoder_parts_from_its_drive_and_the_interlock_quick_stops_the_drives():
+    """The same stuck encoder, with the check: the luff's drive turns while its encoder stands, and
+    once the two part by the tolerance at the shapes the interlock quick-stops the drives. They
+    brake on their own speed feedback, whatever the PID commands, and the boom stands clear."""
+    result = simulate(load_scene(SCENES / "heavy_boom_interlocked.toml", {"faults": LUFF_STUCK}))
+    collision = result.metrics["collision"]
+    (stop,) = collision["interventions"]
+    lock = result.scene.interlock
+    assert stop["kind"] == "quick_stop" and stop["axis"] == "luff"
+    assert 120.0 < stop["time_s"] < 120.0 + 10 * lock.encoder_window
+    assert lock.encoder_tolerance < stop["encoder_apart_m"] < 1.5 * lock.encoder_tolerance  # caught as it crossed
+    assert collision["contacts"] == [] and collision["pile"]["boom"]["clearance_m"] > lock.stop
+    after = result.time > stop["time_s"]
+    # The drives' own forces, not the PID's, from the period of the stop on ...
+    assert np.abs(result.drive_force[after] - result.drive_force_command[after]).max() > 1e3
+    # ... which bring every joint to a stand and hold it there.
+    standing = result.time > stop["time_s"] + 5.0
+    assert np.abs(result.qd[standing]).max() < 1e-4
+    assert f"quick stop at {stop['time_s']:.2f} s (luff encoder" in summary_table(result.metrics)
+
+
+def test_the_encoder_check_stops_in_the_period_the_encoder_parts_from_its_drive():
+    """The check alone, on readings given: an encoder that follows its drive through speed
+    changes never trips it; once it sticks, the quick stop comes in the very period in which the
+    encoder's motion over the window parts from the drive's integrated speed by the tolerance."""
+    from bwr_twin.collision.interlock import ZoneInterlock
+
+    settings = load_scene(SCENES / "heavy_boom_interlocked.toml").interlock
+    period, levers = 0.1, np.array([1.0, 60.0, 40.0])
+    lock = ZoneInterlock(settings, 1, period, ["boom"], levers)
+    t = np.arange(400) * period
+    speed = np.stack([0.3 * np.sin(t / 7), 0.004 * np.sin(t / 3), 0.002 * np.cos(t / 5)], axis=1)  # m/s, rad/s
+    q = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (speed[1:] + speed[:-1]) * period, axis=0)])
+    stuck = 250
+    reading = q.copy()
+    reading[stuck:, 1] = q[stuck, 1]  # the slew encoder sticks
+    window = round(settings.encoder_window / period)
+    tripped = None  # the first period the encoder is the tolerance off its drive at the shapes
+    for k in range(len(t)):
+        lock.drive_speed[:] = speed[k]
+        pace = lock.pace(t[k], reading[k:k + 1], np.zeros((1, 3)), np.full((1, 1), 50.0))
+        first = max(k - window, 0)
+        apart = abs((reading[k, 1] - reading[first, 1]) - (q[k, 1] - q[first, 1])) * levers[1]
+        if tripped is None and apart > settings.encoder_tolerance:
+            tripped = k
+        assert lock.quick_stop[0] == (tripped is not None) and pace[0] == (0.0 if tripped is not None else 1.0)
+    assert tripped is not None and t[tripped] > t[stuck]
+    (event,) = lock.interventions[0]
+    assert event["kind"] == "quick_stop" and event["axis"] == "slew" and event["time_s"] == t[tripped]
 
 
 def test_the_batch_summary_has_the_least_clearance_and_the_contacts(boom_into_pile, interlocked):

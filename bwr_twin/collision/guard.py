@@ -17,6 +17,10 @@ report put it (`report_delay` late, bwr_twin.sim.neighbour): the interlock sees 
 the neighbour less the distance the neighbour may cover before it stands (its reported speed on
 its own shapes' levers over the report's delay and the reaction, then braking at the
 deceleration: it is slowed and stopped by the same pace, bwr_twin.sim.neighbour).
+
+The interlock may also quick-stop a run's drives (its `quick_stop`): the twin then replaces the
+controller's forces with the drives' own quick stop (bwr_twin.sim.drives) from that period on, and
+the run's pace is 0.
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ class Guard:
     """Every run's interlocked reference.
 
     Attributes:
-        interlock: the scene's interlock.
+        interlock: the scene's interlock; its `quick_stop` (runs,) the runs whose drives it stops.
         pace: (runs,) this period's, in [0, 1].
         q, qd, qdd: (runs, 3) the reference of the period.
     """
@@ -71,9 +75,10 @@ class Guard:
         self._fraction = [0.0] * runs  # ... and a fraction of one
         self.q, self.qd, self.qdd = (np.zeros((runs, 3)) for _ in range(3))
 
-    def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, known: np.ndarray,
-               neighbour: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        """Period k's pace of every run, from its encoders' (runs, 3) readings, the pile it knows,
+    def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, drive_speed: np.ndarray,
+               known: np.ndarray, neighbour: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Period k's pace of every run, and the runs whose drives it quick-stops, from its
+        encoders' (runs, 3) readings, its drives' own speed feedback (runs, 3), the pile it knows,
         (runs, ny, nx) m (NaN: never seen), and the neighbour's joints and speeds as its latest
         report gives them, (runs, 2, 3); then its reference for the period."""
         monitor, time = self.monitor, round(k * self.period, 9)
@@ -84,11 +89,16 @@ class Guard:
         if self.machines is not None:
             clearance = np.concatenate([clearance, self._to_neighbour(k, q_measured, qd_measured, neighbour)], axis=1)
         interlock = self.interlock
+        interlock.drive_speed[...] = drive_speed
         pace = checked(self._label, "pace", call(self._label, interlock.pace, "pace", time, time, q_measured,
                                                  qd_measured, clearance), (len(self.pace),), time)
         if not ((pace >= 0.0) & (pace <= 1.0)).all():
             raise PluginError(f"{self._label}: pace() returned {pace} at t = {time:.2f} s; paces lie in [0, 1]")
-        self.pace = pace
+        stop = interlock.quick_stop
+        if not (isinstance(stop, np.ndarray) and stop.dtype == bool and stop.shape == self.pace.shape):
+            raise PluginError(f"{self._label}: its quick_stop is {stop!r} at t = {time:.2f} s; it must be a "
+                              f"({len(self.pace)},) array of bools")
+        self.pace = np.where(stop, 0.0, pace)  # a quick-stopped machine follows nothing
         if self._rows is not None:
             self._reference()
 

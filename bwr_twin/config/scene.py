@@ -219,7 +219,9 @@ class InterlockSection:
     distance the machine would cover before it stands (its speed for `reaction` s, then braking
     at `deceleration`), it warns within `warn` m, slows the path to `slow_share` of its speed
     within `slow` m and stops it within `stop` m, held until the run ends; it leaves a warning or
-    a slowdown once the predicted clearance is `hysteresis` m beyond the zone's edge. Or an
+    a slowdown once the predicted clearance is `hysteresis` m beyond the zone's edge. With
+    `encoder_check` it quick-stops the drives where an encoder's motion over `encoder_window` s
+    parts from its drive's own speed feedback by more than `encoder_tolerance` m at the shapes. Or an
     engineer's class, "my_interlock.py:MyInterlock" (bwr_twin.collision.interlock), given these
     numbers too."""
 
@@ -230,6 +232,9 @@ class InterlockSection:
     deceleration: float = 0.05  # m/s^2 the drives brake the shapes at
     slow_share: float = 0.3  # of the path's speed, in the slow zone
     hysteresis: float = 0.5  # m beyond a zone's edge the predicted clearance must reach to leave it
+    encoder_check: bool = True  # check the encoders against the drives' speed feedback
+    encoder_tolerance: float = 0.2  # m at the shapes the two may part by
+    encoder_window: float = 1.0  # s over which their motions are compared
     type: str = INTERLOCKS.default
 
 
@@ -781,13 +786,16 @@ def _check_interlock(scene: Scene) -> None:
     if not 0 < lock.stop < lock.slow < lock.warn:
         raise SceneError(f"{p}: [interlock] zones must hold 0 < 'stop' < 'slow' < 'warn' m, got stop {lock.stop}, "
                          f"slow {lock.slow}, warn {lock.warn}")
-    for key in ("reaction", "deceleration"):
+    for key in ("reaction", "deceleration", "encoder_tolerance", "encoder_window"):
         if not getattr(lock, key) > 0:
             raise SceneError(f"{p}: 'interlock.{key}' must be > 0, got {getattr(lock, key)}")
     if not lock.hysteresis >= 0:
         raise SceneError(f"{p}: 'interlock.hysteresis' must be >= 0 m, got {lock.hysteresis}")
     if not 0 < lock.slow_share < 1:
         raise SceneError(f"{p}: 'interlock.slow_share' must lie in (0, 1), got {lock.slow_share}")
+    if lock.encoder_window < scene.simulation.control_period:
+        raise SceneError(f"{p}: 'interlock.encoder_window' must span at least a control period "
+                         f"({scene.simulation.control_period} s), got {lock.encoder_window} s")
     try:
         interlock_class(lock.type)
     except SceneError as exc:

@@ -42,13 +42,22 @@ def summary_table(metrics: dict) -> str:
         lines += clearance_line(collision).splitlines()
         lines += [f"warning: {contact_line(contact)}" for contact in collision["contacts"]]
         if collision["interventions"]:
-            lines.append("interlock: " + ", ".join(
-                f"{i['kind']} at {i['time_s']:.2f} s ({i['part']} {i['predicted_clearance_m']:.2f} m predicted)"
-                for i in collision["interventions"]))
+            lines.append("interlock: " + ", ".join(intervention_text(i) for i in collision["interventions"]))
     for fault in metrics.get("faults", ()):
         lines.append(fault_line(fault))
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
+
+
+def intervention_text(intervention: dict) -> str:
+    """An interlock's intervention in words: its kind and time, and what it names of the cause
+    (an engineer's interlock reports at least the kind and the time)."""
+    text = f"{intervention['kind'].replace('_', ' ')} at {intervention['time_s']:.2f} s"
+    if "encoder_apart_m" in intervention:
+        return text + f" ({intervention['axis']} encoder {intervention['encoder_apart_m']:.2f} m off its drive)"
+    if "predicted_clearance_m" in intervention:
+        return text + f" ({intervention.get('part', 'a shape')} {intervention['predicted_clearance_m']:.2f} m predicted)"
+    return text
 
 
 def scan_line(when: str, known: dict) -> str:

@@ -220,7 +220,7 @@ class Lockstep:
                                     control_period=period, nthread=self.nthread, neighbour=self.neighbour)
         self._encoders = Encoders(parameters, period, tracking.start)
         self.faults = faults = Faults(scene.faults, parameters.seed, period)
-        self._applied = np.zeros((runs, 3))  # the drive forces a tripped drive leaves of the command
+        self._applied = np.zeros((runs, 3))  # the drive forces applied, where a quick stop or a trip overrides the command
         self._disturbances = Disturbances(parameters, period)
         self.reclaim = None
         if surface is not None:
@@ -336,7 +336,7 @@ class Lockstep:
         if self.interlock is not None:  # ... and so does the interlock, which decides this period's reference
             known = (self.scanning.survey.z if self.scanning is not None
                      else self.reclaim.cutter.heights if self.reclaim is not None else None)
-            self.interlock.decide(self.k, row.q_measured, row.qd_measured, known,
+            self.interlock.decide(self.k, row.q_measured, row.qd_measured, row.qd, known,
                                   neighbour.reported if neighbour is not None else None)
             if not self.tracking.shared:  # a bench plan's follower takes it from the next period on
                 self.tracking.pace = self.interlock.pace
@@ -376,10 +376,15 @@ class Lockstep:
         if gusts.active:  # still air leaves the row's zeros
             row.gust[...] = gusts.sample(k)
         applied = row.command
-        if self.faults.active:  # a tripped drive applies nothing, whatever it was commanded
+        quick_stop = self.interlock.interlock.quick_stop if self.interlock is not None else None
+        stopping = quick_stop is not None and quick_stop.any()
+        if self.faults.active or stopping:
             applied = self._applied
             applied[...] = row.command
-            self.faults.command(k, applied)
+            if stopping:  # the interlock's quick stop: the drives brake on their own, whatever commanded
+                plant.quick_stop(quick_stop, applied)
+            if self.faults.active:  # a tripped drive applies nothing, whatever it was commanded
+                self.faults.command(k, applied)
         if row.neighbour is not None:  # where the neighbour stands as the period starts
             row.neighbour[1][...] = plant.neighbour_q
         plant.step(applied, disturbance, row.gust)

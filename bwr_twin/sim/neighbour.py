@@ -14,14 +14,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import mujoco
-import numba
 import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import EnvelopeError
 from bwr_twin.model.machine import AXES, Machine, describe
 from bwr_twin.planning.trajectory import Trajectory
+from bwr_twin.sim.drives import hold, inertia_at
 
 
 class Neighbour:
@@ -47,7 +46,7 @@ class Neighbour:
         self.start = np.array([schedule.sample(0.0)[0] for schedule in self._schedules])
         # Each axis a mass-spring-damper of natural frequency w and damping 1 on the inertia it
         # has at the start (the diagonal of M), the drives' limits the bounds of its force.
-        self._inertia, self._bandwidth = _inertia(machine, self.start[0]), section.bandwidth
+        self._inertia, self._bandwidth = inertia_at(machine, self.start[0]), section.bandwidth
         self._limits = machine.drive_limits
         self.q_reference = np.zeros((len(scenes), 3))
         self.clock = np.zeros(len(scenes))
@@ -74,7 +73,7 @@ class Neighbour:
         reference[:, 2] *= (self.pace**2)[:, None]
         self.q_reference[:] = reference[:, 0]
         out = np.empty_like(q)
-        _pd(reference, q, qd, bias, self._inertia, self._bandwidth, self._limits, out)
+        hold(reference, q, qd, bias, self._inertia, self._bandwidth, self._limits, out)
         self.clock += self.pace * self.period
         return out
 
@@ -96,26 +95,3 @@ def neighbour_schedule(scene: Scene, machine: Machine) -> Trajectory:
     elif times[0] > 0:  # at rest at its first step until then
         times, knots = np.concatenate([[0.0], times]), np.concatenate([knots[:1], knots])
     return Trajectory(times=times, knots=knots, points=machine.fk(knots))
-
-
-def _inertia(machine: Machine, q: np.ndarray) -> np.ndarray:
-    """(3,) the diagonal of the machine's mass matrix at q: each drive's inertia there."""
-    model = machine.model
-    data = mujoco.MjData(model)
-    data.qpos[machine.joint_ids] = q
-    mujoco.mj_forward(model, data)
-    full = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, full)
-    dofs = model.jnt_dofadr[machine.joint_ids]
-    return full[dofs, dofs].copy()
-
-
-@numba.njit(cache=True)
-def _pd(reference, q, qd, bias, inertia, w, limits, out):  # pragma: no cover - compiled
-    """Bias + inertia x (the reference's acceleration + w^2 x the position error + 2 w x the
-    velocity error), within the drives' limits, for every run."""
-    for r in range(q.shape[0]):
-        for j in range(3):
-            force = bias[r, j] + inertia[j] * (reference[r, 2, j] + w * w * (reference[r, 0, j] - q[r, j])
-                                               + 2.0 * w * (reference[r, 1, j] - qd[r, j]))
-            out[r, j] = min(max(force, limits[j, 0]), limits[j, 1])

@@ -18,6 +18,7 @@ from mujoco.batch import Batch
 from mujoco.batch import SimulationError as BatchError
 
 from bwr_twin.model.machine import Machine
+from bwr_twin.sim.drives import inertia_at, quick_stop
 from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.parameters import RunParameters
 
@@ -60,6 +61,10 @@ class Plant:
         ids = list(machine.actuator_ids)
         self._actuators = np.array(ids, dtype=np.int64)  # the drives' columns of ctrl, in joint order
         self._gear = machine.model.actuator_gear[ids, 0].copy()
+        self._bias = batch.bind("qfrc_bias")[:, :3]
+        # A quick stop brakes on each drive's inertia at the start pose, within its limits.
+        self._inertia, self._limits = inertia_at(machine, np.broadcast_to(q0, (runs, 3))[0]), machine.drive_limits
+        self._period = control_period
         self.neighbour = neighbour
         if neighbour is not None:
             self.neighbour_q, self.neighbour_qd = qpos[:, 3:6], qvel[:, 3:6]
@@ -108,6 +113,12 @@ class Plant:
                     self.fail(int(run), f"MuJoCo: {self.batch.error(int(run))}")
         if _any(self._warning_counts):  # cheap each period, so a failure's time is exact
             self.check_health()
+
+    def quick_stop(self, stopped: np.ndarray, drive_force: np.ndarray) -> None:
+        """Replace the (runs, 3) drive forces of the runs `stopped` (runs,) with their drives' quick
+        stop: each brakes its own speed to zero within a control period as far as its force limit
+        allows, and holds it there (bwr_twin.sim.drives)."""
+        quick_stop(stopped, self.qvel, self._bias, self._inertia, self._period, self._limits, drive_force)
 
     def read(self, q: np.ndarray, qd: np.ndarray, drive_force: np.ndarray) -> None:
         """Copy the (runs, 3) joint state and the drive forces of the last period into the arrays given."""

@@ -4,9 +4,9 @@
 
 The per-period hot spots are compiled with numba on first use (some 10 s on this 2-core
 machine) and cached on disk. `make setup` runs this: a second of each kind of shipped scene (the
-fuzzy controller on the paper's path, a PID digging a pile, two machines under an interlock, a
-bench reclaim under its rate loop)
-calls every kernel once, and every later run, the replay's included, starts compiled.
+fuzzy controller on the paper's path, a PID digging a pile, two machines under an interlock that
+quick-stops them, a bench reclaim under its rate loop) calls every kernel once, and every later
+run, the replay's included, starts compiled.
 """
 
 from __future__ import annotations
@@ -28,7 +28,10 @@ def main() -> None:
     started = time.perf_counter()
     for name, overrides in (("paper_individual_gains", _first_second("paper_individual_gains")),
                             ("heavy_dig_pile", _first_second("heavy_dig_pile")),
-                            ("heavy_two_machines_interlocked", _first_second("heavy_two_machines_interlocked")),
+                            # an encoder that drops out: the interlock quick-stops the drives
+                            ("heavy_two_machines_interlocked", {**_first_second("heavy_two_machines_interlocked"),
+                                                                "faults": [{"kind": "encoder_dropout", "axis": "travel",
+                                                                            "start": 0.5}]}),
                             ("heavy_bench_reclaim", {"reclaim.stop": {"time": 1.0}})):
         simulate(load_scene(find_scene(name), overrides))
     print(f"compiled the loop's kernels in {time.perf_counter() - started:.1f} s (cached for every later run)")
