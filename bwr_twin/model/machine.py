@@ -30,7 +30,8 @@ from bwr_twin.sensing.scanner import Scanner, read_scanners
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
-CP_SITE = "bucket_wheel_center"
+# The CP's site: a reclaimer's bucket wheel centre, or a stacker's discharge point at its boom tip.
+CP_SITES = ("bucket_wheel_center", "discharge_point")
 ENVELOPE_KEY = "envelope_{axis}"
 WHEEL_KEYS = ("wheel_diameter", "wheel_width", "wheel_buckets", "bucket_volume", "wheel_discharges_per_minute")
 WHEEL_POWER_KEY = "wheel_power"  # optional: without it, the cutting force has no ceiling
@@ -151,9 +152,7 @@ class Machine:
                                                     stockpile_drawing=stockpile_drawing))
         self.joint_ids = self._check_joints()
         self.actuator_ids = self._check_actuators()
-        self.cp_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, CP_SITE)
-        if self.cp_site < 0:
-            raise ModelError(f"{self.path}: no site named '{CP_SITE}' at the bucket wheel centre")
+        self.cp_site = self._cp_site()
         self.geometry = self._derive_geometry()
         self.joint_range = np.array(
             [
@@ -339,6 +338,15 @@ class Machine:
                 raise ModelError(f"{self.path}: custom numeric '{key}' must hold one value > 0")
             speeds[j] = value[0]
         return speeds
+
+    def _cp_site(self) -> int:
+        """The id of the one CP site the file has (CP_SITES)."""
+        found = [site for name in CP_SITES if (site := mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, name)) >= 0]
+        if len(found) != 1:
+            raise ModelError(f"{self.path}: {'no site' if not found else 'two sites'} named '{CP_SITES[0]}' (a "
+                             f"reclaimer's bucket wheel centre) or '{CP_SITES[1]}' (a stacker's boom tip): it needs "
+                             "exactly one, at the CP")
+        return found[0]
 
     def _drive_limits(self) -> np.ndarray:
         m = self.model
