@@ -18,6 +18,7 @@ from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import Lockstep, simulate
 
 SCENE = SCENES / "heavy_two_machines.toml"
+STACKER = SCENES.parent / "mjcf" / "stacker_heavy.xml"  # the scene's neighbour
 # The first machine onto its top bench and resting there while the neighbour closes in.
 SHORT = {"path.via_points": [{"t": 0.0, "p": [-2.780, 0.0, 18.794]}, {"t": 180.0, "p": [-5.698, 18.927, 15.0]},
                              {"t": 400.0, "p": [-5.698, 18.927, 15.0]}]}
@@ -29,12 +30,12 @@ def meeting():
 
 
 def test_one_model_holds_both_machines_the_first_machines_joints_first():
-    heavy = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml")
-    model = heavy.physics_model(0.002, neighbour=heavy.path)
+    heavy, stacker = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml"), Machine(STACKER)
+    model = heavy.physics_model(0.002, neighbour=stacker.path)
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
     assert names == ["travel", "slew", "luff", "neighbour/travel", "neighbour/slew", "neighbour/luff"]
-    assert model.nu == 2 * heavy.model.nu and heavy.model.nq == 3
-    np.testing.assert_array_equal(model.body_mass[heavy.model.nbody:], heavy.model.body_mass[1:])  # the same machine
+    assert model.nu == heavy.model.nu + stacker.model.nu and heavy.model.nq == 3
+    np.testing.assert_array_equal(model.body_mass[heavy.model.nbody:], stacker.model.body_mass[1:])  # the stacker's bodies
     loop = Lockstep([load_scene(SCENE, SHORT)])
     assert loop._plant.qpos.shape == (1, 3) and loop._plant.neighbour_q.shape == (1, 3)
     np.testing.assert_allclose(loop._plant.neighbour_q[0], [-190.0, 0.0, 0.0])
@@ -52,22 +53,23 @@ def test_the_neighbour_follows_its_schedule_on_its_own_drives(meeting):
     np.testing.assert_allclose(q, [-180.0, np.radians(10.0), np.radians(2.0)], atol=0.05)
 
 
-def test_the_neighbours_wheel_meeting_the_machine_is_a_contact_with_its_time(meeting):
+def test_the_stackers_chute_meeting_the_machine_is_a_contact_with_its_time(meeting):
     collision = meeting.metrics["collision"]
     (first, *_) = collision["contacts"]
-    assert first["bodies"] == ["tail", "neighbour/wheel"]
+    assert first["bodies"] == ["tail", "neighbour/chute"]
     assert 200.0 < first["time_s"] < 360.0 and first["depth_m"] > 1.0
-    pair = collision["machines"]["tail | neighbour/wheel"]
+    pair = collision["machines"]["tail | neighbour/chute"]
     assert pair["clearance_m"] == pytest.approx(-first["depth_m"]) and pair["time_s"] == first["depth_time_s"]
-    assert collision["machines"]["wheel | neighbour/wheel"]["clearance_m"] == 10.0  # never within the watch
+    assert collision["machines"]["wheel | neighbour/chute"]["clearance_m"] == 10.0  # never within the watch
     lines = summary_table(meeting.metrics).splitlines()
-    assert any(line.startswith("warning: collision: the tail met the neighbour/wheel") for line in lines)
-    assert any(line.startswith("least clearance to the neighbour: tail | neighbour/wheel -") for line in lines)
+    assert any(line.startswith("warning: collision: the tail met the neighbour/chute") for line in lines)
+    assert any(line.startswith("least clearance to the neighbour: tail | neighbour/") for line in lines)
 
 
 def test_the_clearance_is_mujocos_distance_between_the_two_machines_shapes():
     """Beyond the watch, in reach and in contact: the monitor's clearance of the tail to the
-    neighbour's wheel is MuJoCo's distance between the two boxes, on a model of both posed here."""
+    neighbour's wheel is MuJoCo's distance between the two boxes, on a model of both posed here
+    (two heavy reclaimers: the clearance takes any two machines)."""
     from bwr_twin.collision.machines import MachineClearance
 
     heavy = Machine(SCENES.parent / "mjcf" / "bwr_heavy.xml")
@@ -129,15 +131,16 @@ def interlocked():
 
 
 def test_the_interlock_stops_both_machines_short_of_each_other(meeting, interlocked):
-    """The same neighbour that ran its wheel into the machine's tail is stopped, with the machine,
-    beyond the stop zone: no contact, the stop on the tail's clearance to the neighbour, and the
+    """The same stacker that ran its chute into the machine's tail is stopped, with the machine,
+    beyond the stop zone: no contact, the stop on the tail's or counterweight's clearance to it, and the
     neighbour's schedule held from then on."""
     collision = interlocked.metrics["collision"]
     assert collision["contacts"] == [] and meeting.metrics["collision"]["contacts"]
     least = min(pair["clearance_m"] for pair in collision["machines"].values())
     assert least >= interlocked.scene.interlock.stop
     stop = next(i for i in collision["interventions"] if i["kind"] == "stop")
-    assert stop["part"] == "tail | neighbour" and stop["predicted_clearance_m"] <= interlocked.scene.interlock.stop
+    assert stop["part"] in ("tail | neighbour", "counterweight | neighbour")  # what the stacker's boom meets
+    assert stop["predicted_clearance_m"] <= interlocked.scene.interlock.stop
     after = interlocked.time >= stop["time_s"] + 30.0  # braked to rest well within 30 s
     schedule = interlocked.neighbour["q_desired"][after]
     np.testing.assert_array_equal(schedule, schedule[:1].repeat(len(schedule), axis=0))  # held
