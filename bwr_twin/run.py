@@ -66,7 +66,7 @@ def _run(args: argparse.Namespace) -> int:
         result = simulate(scene, progress=progress)
     simulated = time.perf_counter() - started
     metrics = write_run(result, args.out, overwrite=args.overwrite, plots=not args.no_plots)
-    print(f"{scene.path.name}: {result.trajectory.duration:g} s reclaim simulated in {simulated:.1f} s, "
+    print(f"{scene.path.name}: {result.time[-1] - result.time[0]:g} s simulated in {simulated:.1f} s, "
           f"seed {scene.simulation.seed}, machine {scene.machine.mjcf.name}")
     print(summary_table(metrics))
     print(f"results in {args.out}/")

@@ -160,7 +160,8 @@ BOTH_MOTIONS = '\n[path]\nframe = "world"\nvia_points = [{ t = 0.0, p = [56.5, 1
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"base": "paper_individual_gains.toml", "stockpile": False}, r"small.toml: \[reclaim\] needs a \[stockpile\]"),
-    ({"extra": BOTH_MOTIONS}, r"small.toml: a scene needs either a \[path\] of via points or a \[reclaim\], not both"),
+    ({"extra": BOTH_MOTIONS}, r"small.toml: a scene needs one of a \[path\] of via points, a \[reclaim\] or a \[stacking\], "
+                              r"got \[path\] and \[reclaim\]"),
     ({"reclaim": {"stop": {"benches": 1, "time": 10.0}}},
      r"\[reclaim.stop\] needs exactly one of 'benches', 'tonnes' or 'time', got benches, time"),
     ({"reclaim": {"stop": {}}}, r"\[reclaim.stop\] needs exactly one of 'benches', 'tonnes' or 'time', got none"),

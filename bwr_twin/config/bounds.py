@@ -69,6 +69,11 @@ def check_bounds(scene) -> None:
         if pile.windrow is not None:
             _within(p, "stockpile.windrow.angle_of_repose", pile.windrow.angle_of_repose, ANGLE_OF_REPOSE,
                     "deg", "the angles at which freely formed piles of bulk solids stand, CEMA Table 3-1")
+    if scene.stacking is not None:
+        _within(p, "stacking.bulk_density", scene.stacking.bulk_density, BULK_DENSITY, "kg/m3",
+                "from wood chips to lead ore, CEMA's table of bulk materials")
+        _within(p, "stacking.angle_of_repose", scene.stacking.angle_of_repose, ANGLE_OF_REPOSE, "deg",
+                "the angles at which freely formed piles of bulk solids stand, CEMA Table 3-1")
     peak = plant.wind_speed + plant.gust_amplitude
     if peak > WIND_PEAK:
         raise SceneError(f"{p}: 'plant.wind_speed' + 'plant.gust_amplitude' ({plant.wind_speed:g} + "

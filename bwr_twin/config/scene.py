@@ -277,6 +277,46 @@ class ReclaimSection:
 
 
 @dataclass(frozen=True)
+class GradeSection:
+    """`[stacking.grade]`: the grade of the stream arriving to be stacked (a number such as
+    Fe %, bwr_twin.stockpile.grade): an AR(1) of `mean`, `sd` and `correlation_time` drawn from
+    each run's seed, or a recorded CSV `file` of t (s), grade rows."""
+
+    mean: float | None = None
+    sd: float = 0.0
+    correlation_time: float = 0.0  # s; 0: each deposit's grade independent of the last
+    file: Path | None = None
+    interpolation: Literal["step", "linear"] = "step"  # between a recorded file's rows
+    name: str = "grade"  # what the grade is, for labels: "Fe %", "ash %"
+    band: tuple[float, float] | None = None  # the grade the pile's customer accepts, for metrics
+
+
+@dataclass(frozen=True)
+class StackingSection:
+    """`[stacking]`: the machine stacks a pile instead of following a path or reclaiming one
+    (docs/blending.md). It discharges `rate` t/h at its CP (a stacker's discharge point) until
+    `tonnes` are laid, on a chevron pattern: passes to and fro along the pile's axis, from
+    `axis_x[0]` to `axis_x[1]` at `axis_y` (world m), one layer a pass, the discharge point
+    `drop` m above the crest the pile's target section has reached, luffed up between passes.
+    The material falls and slumps to its angle of repose every `deposit_period` s."""
+
+    rate: float  # t/h
+    tonnes: float  # t to stack
+    axis_x: tuple[float, float]  # m: where the pile's axis starts and ends, along the rail
+    axis_y: float  # m: the axis's distance beside the rail's
+    layers: int  # chevron passes, one layer each
+    bulk_density: float  # kg/m^3 of the stacked (loose) material
+    angle_of_repose: float  # deg
+    grade: GradeSection
+    pattern: Literal["chevron"] = "chevron"
+    drop: float = 2.0  # m from the discharge point down to the crest
+    acceleration: float = 0.05  # m/s^2 of the travel as a pass starts and ends
+    grid_spacing: float = 0.5  # m between the pile's height samples
+    deposit_period: float = 1.0  # s between deposits: laid and slumped this often
+    max_layers: int = 64  # a column's layers (bwr_twin.stockpile.layers)
+
+
+@dataclass(frozen=True)
 class ScheduleStep:
     t: float  # s
     q: Vec3  # travel m, slew deg, luff deg
@@ -305,7 +345,7 @@ class Scene:
     disturbance: DisturbanceSection
     controller: ControllerSection
     trajectory: PathSection | None = None  # via points, or
-    reclaim: ReclaimSection | None = None  # a bench reclaim planned from the stockpile
+    reclaim: ReclaimSection | None = None  # a bench reclaim planned from the stockpile, or [stacking]
     plant: PlantSection = field(default_factory=PlantSection)
     stockpile: StockpileSection | None = None
     digging: DiggingSection | None = None
@@ -313,6 +353,7 @@ class Scene:
     faults: tuple[FaultSection, ...] = ()  # [[faults]]: what fails, when, for how long (docs/sensing.md)
     interlock: InterlockSection | None = None  # the anti-collision interlock (docs/anticollision.md)
     neighbour: NeighbourSection | None = None  # a second machine on the rail (docs/anticollision.md)
+    stacking: StackingSection | None = None  # the machine stacks a pile (docs/blending.md)
 
     @property
     def controller_mjcf(self) -> Path:
@@ -322,6 +363,8 @@ class Scene:
     def input_files(self) -> tuple[Path, ...]:
         """The files this scene reads: nothing the twin writes may replace them."""
         pile = (self.stockpile.surface_file,) if self.stockpile and self.stockpile.surface_file else ()
+        if self.stacking is not None and self.stacking.grade.file is not None:
+            pile += (self.stacking.grade.file,)
         classes = (self.reclaim.rate_control.type if self.reclaim else "",
                    self.interlock.type if self.interlock else "")
         class_files = tuple(Path(name.rpartition(":")[0]) for name in classes if ":" in name)
@@ -425,7 +468,7 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
 # Keys of a table that exclude each other: a scene that extends another and gives one of them
 # replaces whichever of them its base gave ("" is the top level).
 ALTERNATIVES = {
-    "": ("path", "reclaim"),
+    "": ("path", "reclaim", "stacking"),
     "stockpile": ("windrow", "surface_file"),
     "reclaim.stop": ("benches", "tonnes", "time"),
 }
@@ -679,13 +722,18 @@ def _check_rules(scene: Scene) -> None:
                 f"{p}: 'simulation.{period}' ({getattr(sim, period)} s) must be a whole multiple of "
                 f"'simulation.{unit}' ({getattr(sim, unit)} s)"
             )
-    if (scene.trajectory is None) == (scene.reclaim is None):
-        raise SceneError(f"{p}: a scene needs either a [path] of via points or a [reclaim], not both")
+    plans = [name for name, given in (("[path]", scene.trajectory), ("[reclaim]", scene.reclaim),
+                                      ("[stacking]", scene.stacking)) if given is not None]
+    if len(plans) != 1:
+        raise SceneError(f"{p}: a scene needs one of a [path] of via points, a [reclaim] or a [stacking], "
+                         f"got {' and '.join(plans) if plans else 'none'}")
     if scene.trajectory is not None:
         _check_path(scene)
     _check_stockpile(scene)
     if scene.reclaim is not None:
         _check_reclaim(scene)
+    if scene.stacking is not None:
+        _check_stacking(scene)
     _check_sensing(scene)
     _check_interlock(scene)
     _check_neighbour(scene)
@@ -820,6 +868,40 @@ def _check_neighbour(scene: Scene) -> None:
         raise SceneError(f"{p}: 'neighbour.bandwidth' must be > 0 rad/s, got {neighbour.bandwidth}")
     if not neighbour.report_delay >= 0:
         raise SceneError(f"{p}: 'neighbour.report_delay' must be >= 0 s, got {neighbour.report_delay}")
+
+
+def _check_stacking(scene: Scene) -> None:
+    """The rules of [stacking] that need no machine; the planner checks its reach."""
+    p, s = scene.path, scene.stacking
+    if scene.stockpile is not None or scene.digging is not None:
+        raise SceneError(f"{p}: [stacking] builds its own pile on the bare yard: it takes no [stockpile] or [digging]")
+    for key in ("rate", "tonnes", "bulk_density", "drop", "acceleration", "grid_spacing", "deposit_period"):
+        if not getattr(s, key) > 0:
+            raise SceneError(f"{p}: 'stacking.{key}' must be > 0, got {getattr(s, key)}")
+    if not 0 < s.angle_of_repose < 90:
+        raise SceneError(f"{p}: 'stacking.angle_of_repose' must lie in (0, 90) deg, got {s.angle_of_repose}")
+    if not s.layers >= 1:
+        raise SceneError(f"{p}: 'stacking.layers' must be >= 1, got {s.layers}")
+    if not s.max_layers >= 2:
+        raise SceneError(f"{p}: 'stacking.max_layers' must be >= 2, got {s.max_layers}")
+    if not abs(s.axis_x[1] - s.axis_x[0]) >= 4 * s.grid_spacing:
+        raise SceneError(f"{p}: 'stacking.axis_x' must span at least 4 grid cells "
+                         f"({4 * s.grid_spacing:g} m), got {list(s.axis_x)}")
+    ratio = s.deposit_period / scene.simulation.control_period
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise SceneError(f"{p}: 'stacking.deposit_period' ({s.deposit_period} s) must be a whole multiple of "
+                         f"'simulation.control_period' ({scene.simulation.control_period} s)")
+    g = s.grade
+    if (g.mean is None) == (g.file is None):
+        raise SceneError(f"{p}: [stacking.grade] needs either a 'mean' (with 'sd' and 'correlation_time') or a "
+                         "recorded 'file', not both")
+    if g.sd < 0 or g.correlation_time < 0:
+        raise SceneError(f"{p}: 'stacking.grade.sd' and 'correlation_time' must be >= 0, got {g.sd} and "
+                         f"{g.correlation_time}")
+    if g.file is not None and not g.file.is_file():
+        raise SceneError(f"{p}: 'stacking.grade.file' names a file that does not exist: {g.file}")
+    if g.band is not None and not g.band[0] < g.band[1]:
+        raise SceneError(f"{p}: 'stacking.grade.band' must be [low, high] with low < high, got {list(g.band)}")
 
 
 def _check_stockpile(scene: Scene) -> None:

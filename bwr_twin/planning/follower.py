@@ -41,12 +41,16 @@ class Phase:
 class PathReference:
     """The via-point path, the same for every run: `q`, `qd`, `qdd` are (3,) rows of period k."""
 
-    def __init__(self, trajectory: Trajectory, period: float):
+    def __init__(self, trajectory: Trajectory, period: float,
+                 rows: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None):
+        """`rows`: the path's own (samples, 3) positions, velocities and accelerations at the
+        control period, where `trajectory` holds only its waypoints (a stacking pattern's,
+        bwr_twin.planning.stacking); None samples the trajectory."""
         self.trajectory = trajectory
-        self.samples = round(trajectory.duration / period) + 1
+        self.samples = round(trajectory.duration / period) + 1 if rows is None else len(rows[0])
         self.time = trajectory.times[0] + np.arange(self.samples) * period
-        self.q_desired, self.qd_desired, self.qdd_desired = trajectory.sample(self.time)
-        self.start = trajectory.knots[0]
+        self.q_desired, self.qd_desired, self.qdd_desired = trajectory.sample(self.time) if rows is None else rows
+        self.start = self.q_desired[0]
         self.finished = False
         self.k = 0
 

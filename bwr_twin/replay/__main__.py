@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
             size = export_html(recording, args.export, name=lead.name, others=lead.others,
                                side_by_side=args.side_by_side)
             runs = f"{1 + len(lead.others)} runs of " if lead.others else ""
-            print(f"wrote {args.export} ({size / 1e6:.1f} MB): {runs}the {recording.plan.duration:g} s reclaim, offline")
+            print(f"wrote {args.export} ({size / 1e6:.1f} MB): {runs}the {recording.plan.duration:g} s {recording.plan.activity}, offline")
             return 0
 
         from bwr_twin.replay.app import ReplayServer

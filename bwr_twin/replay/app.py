@@ -70,8 +70,8 @@ class ReplayServer:
         if isinstance(source, Recording):
             self.load(source)
         else:
-            reclaim = (f"the reclaim (its plan takes at most {plan.duration:g} s)" if plan.via_stages
-                       else f"the {plan.duration:g} s reclaim")
+            reclaim = (f"the reclaim (its plan takes at most {plan.duration:g} s)"
+                       if plan.via_stages and plan.activity == "reclaim" else f"the {plan.duration:g} s {plan.activity}")
             note = self.server.gui.add_markdown(f"Simulating {reclaim}; the timeline appears when it is done.")
             self._progress = self.server.gui.add_progress_bar(0.0, animated=True)
             self._waiting = [note, self._progress]

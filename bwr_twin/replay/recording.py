@@ -55,6 +55,7 @@ class Plan:
     via_stages: tuple[Stage, ...] = ()  # a bench plan's, typed (bwr_twin.planning.follower); () on a path
     neighbour: Machine | None = None  # a second machine on the rail, if the scene has one
     neighbour_q_desired: np.ndarray | None = None  # (n, 3) its schedule
+    activity: str = "reclaim"  # what the machine does, for labels: "reclaim" or "stacking"
 
     @property
     def duration(self) -> float:
@@ -93,8 +94,8 @@ class Plan:
 
     @classmethod
     def from_scene(cls, scene: Scene) -> Plan:
-        """Plan the scene's path (inverse kinematics and cubics only, no simulation), or its
-        bench reclaim as the plan's speed law alone would run it."""
+        """Plan the scene's path (inverse kinematics and cubics only, no simulation), its bench
+        reclaim as the plan's speed law alone would run it, or its stacking pattern."""
         from bwr_twin.planning.trajectory import Trajectory
 
         machine = Machine(scene.machine.mjcf)
@@ -107,6 +108,12 @@ class Plan:
             time, q_desired, qd_desired, trajectory, stages = nominal(
                 plan_scene(scene), control, machine.fk, every=max(round(period / control), 1),
                 stop_time=scene.reclaim.stop.time)
+        elif scene.stacking is not None:
+            from bwr_twin.planning.stacking import plan_stacking
+
+            pattern = plan_stacking(scene, machine, period)
+            time, (q_desired, qd_desired, _) = pattern.time, pattern.rows
+            trajectory, stages = pattern.waypoints, list(pattern.stages)
         else:
             stages = []
             try:
@@ -135,6 +142,7 @@ class Plan:
             via_stages=tuple(stages),
             neighbour=neighbour,
             neighbour_q_desired=neighbour_q,
+            activity="stacking" if scene.stacking is not None else "reclaim",
         )
 
 
@@ -243,10 +251,13 @@ class Recording:
 
         names, values = timeseries_columns(result)
         columns = dict(zip(names, values.T))
-        reclaim, pile = result.reclaim, None
+        reclaim, stacking, pile = result.reclaim, result.stacking, None
         if reclaim is not None:
             pile = reclaim.history or PileHistory.start_and_end(
                 reclaim.x, reclaim.y, reclaim.z_start, reclaim.z_end, float(result.time[-1]))
+        elif stacking is not None:  # the pile it stacked, grown from the bare yard
+            pile = stacking.history or PileHistory.start_and_end(
+                stacking.x, stacking.y, np.zeros_like(stacking.z), stacking.z, float(result.time[-1]))
         return cls._from_columns(columns, result.scene.to_dict(), result.machine, title=result.scene.path.name,
                                  pile=pile, run=result.metrics["run"], scans=Scans.of(getattr(result, "scan", None)))
 
@@ -287,6 +298,7 @@ class Recording:
             via_points=via_points,
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
             via_stages=stages,
+            activity="stacking" if scene.get("stacking") is not None else "reclaim",
         )
         q_actual = joints("q_actual")
         neighbour = scene.get("neighbour")

@@ -6,7 +6,8 @@ Layout of a run directory (the output contract of docs/contracts.md, plus more):
     timeseries.csv    every signal at the record period; units in the column names
     scene.json        the resolved scene, so the run can be replayed without its files' paths
     pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m), and
-                      for a replay the cells dug frame by frame (bwr_twin.stockpile.history)
+                      for a replay the cells dug frame by frame (bwr_twin.stockpile.history);
+                      stacked: the pile's grade layers and every deposit too
     scans.npz         with a stockpile and a machine that scans: every scan's time, origin and
     survey.npz        hits, and the pile known from them at the end (bwr_twin.sensing.outputs)
     *.png             the paper's figures for this run (bwr_twin.results.plots)
@@ -71,6 +72,10 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
                 for c, coordinate in enumerate("xyz"):
                     names.append(column.format(xyz=coordinate))
                     columns.append(values[:, c])
+    if result.stacking is not None:
+        grade_in, stacked = result.stacking.series(result.time)
+        names += [f"stacking_grade_in_{result.stacking.grade_name}", "stacked_t"]
+        columns += [grade_in, stacked]
     if result.neighbour is not None:
         for signal in NEIGHBOUR:
             for j in range(len(AXES)):
@@ -166,6 +171,8 @@ def write_run(
             history = pile.history.arrays() if pile.history is not None else {}
             np.savez_compressed(staging / PILE_FILE, x=pile.x, y=pile.y, z_start=pile.z_start, z_end=pile.z_end,
                                 **history)
+        if result.stacking is not None:
+            np.savez_compressed(staging / PILE_FILE, **result.stacking.pile_arrays())
         if result.scan is not None:
             result.scan.write(staging)
         if plots:

@@ -34,6 +34,9 @@ def summary_table(metrics: dict) -> str:
             lines.append(plan_line(reclaim))
         if reclaim["spill_t"] > 0:
             lines.append(f"warning: the wheel dug more than its buckets hold: {reclaim['spill_t']:.1f} t spilled")
+    stacking = metrics.get("stacking")
+    if stacking is not None:
+        lines.append(stacking_line(stacking))
     scan = metrics.get("scan")
     if scan is not None and scan.get("plan_start") is not None:
         lines.append(scan_line("the benches planned on the scanned pile", scan["plan_start"]))
@@ -47,6 +50,16 @@ def summary_table(metrics: dict) -> str:
         lines.append(fault_line(fault))
     lines += [f"warning: {flag}" for flag in metrics.get("limits", ())]
     return "\n".join(lines)
+
+
+def stacking_line(stacking: dict) -> str:
+    """What a stacking run laid, the grade it came at, and the balance of tonnes."""
+    name = stacking["grade_name"]
+    return (f"stacked {stacking['tonnes_in_t']:,.1f} t in {stacking['layers']} {stacking['pattern']} layers "
+            f"({stacking['deposits']} deposits): crest {stacking['crest_height_m']:.2f} m (target "
+            f"{stacking['target_height_m']:.2f} m); grade in {stacking['grade_in_mean']:.3f} ± "
+            f"{stacking['grade_in_sd']:.3f} {name}; the pile holds {stacking['pile_t']:,.1f} t "
+            f"(balance {stacking['balance_relative']:.1e})")
 
 
 def intervention_text(intervention: dict) -> str:

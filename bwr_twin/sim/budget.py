@@ -18,10 +18,12 @@ from pathlib import Path
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
+from bwr_twin.planning.stacking import pile_grid
 from bwr_twin.sensing.outputs import HIT_BYTES, SCAN_BYTES, SURVEY_CELL_BYTES
 from bwr_twin.sensing.scanning import planned_scanners
 from bwr_twin.signals import csv_columns, recorded_values
 from bwr_twin.stockpile.surface import cell_count
+from bwr_twin.units import SECONDS_PER_HOUR
 
 # Measured costs (docs/performance.md), rounded up.
 STEP_S = 3.8e-6  # s of CPU per physics step of one run (MuJoCo's floor: 1.33 s for 350,000 steps)
@@ -40,6 +42,12 @@ PILE_FILE_CELL_BYTES = 8  # pile.npz per cell: z_start and z_end, compressed
 # besides: docs/sensing.md measures 40 us a scan of 191 rays in heavy_bench_reclaim's loop.
 SCAN_RAY_S = 0.3e-6
 SCAN_S = 15e-6
+
+# A stacked pile (docs/blending.md): a layer's thickness and grade, float64, in memory and in
+# pile.npz (uncompressed, at most); s of CPU per deposit, the relaxation and the layers' replay
+# (tools/relaxation_speed.py: about 1 ms on 47,500 cells).
+LAYER_BYTES = 16
+DEPOSIT_S = 1.5e-3
 
 # Bounds a command refuses to go beyond without --force.
 MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
@@ -77,6 +85,11 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
         cells = cell_count(scene.stockpile, scene.path) if scene.stockpile is not None else 0
+        layer_bytes = deposit_cpu = 0.0
+        if scene.stacking is not None:  # a pile of layers, laid and slumped every deposit period
+            x, y = pile_grid(scene.stacking)
+            layer_bytes = len(x) * len(y) * scene.stacking.max_layers * LAYER_BYTES
+            deposit_cpu = duration / scene.stacking.deposit_period * DEPOSIT_S
         scan_bytes, scan_cpu = _scans(scene, duration, cells)
         disk += scan_bytes
         cpu += scan_cpu
@@ -90,9 +103,11 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         pile_cells_written += cells
         cpu += run_steps * STEP_S + run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk)
         cpu += run_periods * PILE_PERIOD_S if cells else 0.0
+        cpu += deposit_cpu
+        disk += layer_bytes
         cpu += FILES_S + (PLOTS_S if plots else 0.0)
         peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES
-                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES + scan_bytes))
+                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES + scan_bytes + layer_bytes))
     runs = len(scenes)
     parallel = max(1, min(workers, math.ceil(runs / chunk)))
     disk += runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
@@ -120,6 +135,8 @@ def _duration_of(scene: Scene) -> float:
         from bwr_twin.planning.bench import plan_scene
 
         return plan_scene(scene).longest_duration
+    if scene.stacking is not None:  # the stream runs until the tonnes are laid
+        return scene.stacking.tonnes / scene.stacking.rate * SECONDS_PER_HOUR
     via = scene.trajectory.via_points
     return via[-1].t - via[0].t
 

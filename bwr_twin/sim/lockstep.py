@@ -44,8 +44,9 @@ from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
 from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.sim.record import ReclaimRecord, RunResult
-from bwr_twin.sim.tracking import BenchTracking, PathTracking
+from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
+from bwr_twin.stockpile.stacking import Stacking
 from bwr_twin.stockpile.surface import build_surface
 
 HEALTH_CHECK_EVERY = 100  # control periods between checks for divergence, and progress reports
@@ -77,6 +78,7 @@ def lockstep_key(scene: Scene) -> tuple:
         scene.interlock,
         # one neighbour's file and drives; each run follows its own schedule
         (scene.neighbour.mjcf, scene.neighbour.bandwidth, scene.neighbour.report_delay) if scene.neighbour else None,
+        scene.stacking,  # one pattern and pile grid; each run's grade from its own seed
     )
 
 
@@ -210,10 +212,15 @@ class Lockstep:
             measured = rate_loop_reads_instruments(scene, machine)
             tracking = BenchTracking(scenes, machine, period, instruments=self.instruments if measured else None,
                                      known_pile=(lambda: self.scanning.survey.z[0]) if scanned else None)
+        elif scene.stacking is not None:
+            tracking = StackingTracking(scene, machine, period)
         else:
             tracking = PathTracking(scene, machine, period)
         self.tracking = tracking
         self.samples, self.time = tracking.samples, tracking.time
+        frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
+        self.stacking = (Stacking(scenes, machine, tracking.pattern, period, (tracking.samples - 1) * period,
+                                  frame_every) if scene.stacking is not None else None)
 
         self.neighbour = Neighbour(scenes, period) if scene.neighbour is not None else None
         self._plant = plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep,
@@ -224,7 +231,6 @@ class Lockstep:
         self._disturbances = Disturbances(parameters, period)
         self.reclaim = None
         if surface is not None:
-            frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
             self.reclaim = Reclaim(scenes, machine, surface, period, frame_every)
         check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
         self.collision = (PileClearance(machine.collision_shapes, surface, runs, period)
@@ -362,6 +368,8 @@ class Lockstep:
             self.collision.step(k, row.q, row.qd, reclaim.cutter.heights, plant.alive)
         if self.machines is not None:  # ... and to its neighbour
             self.machines.step(k, row.q, row.qd, plant.neighbour_q, plant.neighbour_qd, plant.alive)
+        if self.stacking is not None:  # the stream lands where the discharge point stands
+            self.stacking.step(k, row.q, plant.alive)
         if reclaim is not None:
             load = reclaim.step(k, row.q, plant.alive)
             if load is not None:
@@ -461,6 +469,8 @@ class Lockstep:
                                           **self.tracking.reclaim_metrics(run, float(self.reclaim.density[run]))}
             if self.scanning is not None:
                 run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
+            if self.stacking is not None:
+                run_metrics["stacking"] = self.stacking.metrics(run)
             if self.collision is not None or self.machines is not None:
                 run_metrics["collision"] = self._collision_metrics(run)
             run_metrics["run"] = {
@@ -480,6 +490,8 @@ class Lockstep:
                 result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
             if self.scanning is not None:
                 result.scan = self.scanning.record(run, self.duration)
+            if self.stacking is not None:
+                result.stacking = self.stacking.record(run)
             if scene.faults:
                 run_metrics["faults"] = fault_metrics(
                     scene.faults, result.time, result.q_desired, result.q, run_metrics,

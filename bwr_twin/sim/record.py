@@ -67,6 +67,7 @@ class RunResult:
     scan: Any = None  # bwr_twin.sensing.outputs.ScanRecord: the scans and the scanned pile, if the machine scans
     # A second machine on the rail: {"q_desired", "q"} (n, 3) its schedule and its true joints, or None
     neighbour: dict[str, np.ndarray] | None = None
+    stacking: Any = None  # bwr_twin.stockpile.stacking.StackingRecord: the deposits and the pile built, if it stacks
 
     @property
     def cp_desired(self) -> np.ndarray:

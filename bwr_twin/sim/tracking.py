@@ -1,7 +1,7 @@
 """What the runs of a lockstep follow: one protocol, two kinds.
 
 `PathTracking` is a scene's via-point path, sampled once at the control period and the same for
-every run. `BenchTracking` is a bench reclaim (scene [reclaim]) that each run follows on its own:
+every run; `StackingTracking` a stacking pattern, followed the same way. `BenchTracking` is a bench reclaim (scene [reclaim]) that each run follows on its own:
 its rate control trims the slew speed from what the run's reclaim measured in the period just
 ended, its stop condition ends the plan, and the lockstep ends once every run rests.
 
@@ -23,6 +23,7 @@ from bwr_twin.errors import EnvelopeError, PluginError, UnreachableError
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_after_survey, plan_scene, survey_plan
 from bwr_twin.planning.follower import BenchReference, PathReference, Phase
+from bwr_twin.planning.stacking import plan_stacking
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.outcome import PlanOutcome
@@ -48,8 +49,11 @@ class PathTracking:
             trajectory = Trajectory.plan(scene.trajectory, machine)
         except (UnreachableError, EnvelopeError) as exc:
             raise type(exc)(f"{scene.path}: {exc}") from None
-        self._reference = reference = PathReference(trajectory, period)
-        self.trajectory = trajectory
+        self._follow(PathReference(trajectory, period))
+
+    def _follow(self, reference: PathReference) -> None:
+        self._reference = reference
+        self.trajectory = reference.trajectory
         self.rows = (reference.q_desired, reference.qd_desired, reference.qdd_desired)
         self.samples, self.time, self.start = reference.samples, reference.time, reference.start
 
@@ -76,6 +80,26 @@ class PathTracking:
 
     def finish(self, reclaim) -> None:
         pass
+
+
+class StackingTracking(PathTracking):
+    """A stacking pattern (scene [stacking], bwr_twin.planning.stacking), planned once and the
+    same for every run, followed as a path is.
+
+    Attributes:
+        pattern: the StackingPlan: its passes, crests and the pile's grid.
+    """
+
+    def __init__(self, scene: Scene, machine: Machine, period: float):
+        self.pattern = pattern = plan_stacking(scene, machine, period)
+        self._follow(PathReference(pattern.waypoints, period, pattern.rows))
+
+    def run_metrics(self, run: int) -> dict:
+        """Where each pass began and ended, and which, for a replay."""
+        waypoints = self.pattern.waypoints
+        return {"waypoint_times": waypoints.times.tolist(), "waypoints": waypoints.points.tolist(),
+                "waypoint_names": [stage.name for stage in self.pattern.stages],
+                "waypoint_stages": [stage.to_dict() for stage in self.pattern.stages]}
 
 
 class BenchTracking:

@@ -1,0 +1,211 @@
+"""A stacking pattern's path, planned once from the pile's target shape and the machine's reach,
+as the bench planner plans a reclaim (docs/blending.md).
+
+Chevron: the discharge point travels to and fro along the pile's axis, one layer a pass, and the
+stream lands on the crest. The target is the chevron pile of the scene's tonnes: a ridge of the
+axis's length standing at the angle of repose, its section H^2 / tan(phi), so H = sqrt(V tan(phi)
+/ L) for a volume V (the end cones left out). After k of N layers the pile holds k/N of it, and its
+crest stands at H sqrt(k / N): pass k keeps the discharge point `drop` above that crest (real
+stackers luff to hold their drop height, against dust and segregation), or as low as the boom
+luffs where that is higher (the first layers of a low pile), and between passes the
+machine stands at the pile's end while the boom luffs up, each joint a rest-to-rest cubic at most
+at its rated speed. A pass runs a trapezoid in travel: `acceleration` up to a cruise speed, the
+speed, then down; its slew and luff hold, the axis lying along the rail. The cruise speed is the
+one at which the N passes and the turns between them take exactly the time the tonnes take at
+the rate, so the stream never stops: the ends, where the machine turns, get the turns' share (the
+end cones of a real chevron pile).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bwr_twin.config.scene import Scene
+from bwr_twin.errors import EnvelopeError, SceneError, UnreachableError
+from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.planning.follower import Stage
+from bwr_twin.planning.trajectory import Trajectory, rest_to_rest
+from bwr_twin.stockpile.surface import YARD_FLOOR
+from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
+
+GRID_MARGIN = 2.0  # m of bare yard around the pile's foot: the relaxation's border is closed
+LOWEST_MARGIN = 0.5  # m above the lowest the boom's head can luff to: room for the tracking error inside the envelope
+
+
+@dataclass(frozen=True)
+class StackingPlan:
+    """The pattern's joint reference at every control period, the same for every run.
+
+    Attributes:
+        time: (samples,) s; rows: its (samples, 3) positions, velocities and accelerations.
+        waypoints: the passes' ends as a via-point trajectory (for drawing; the rows are the path),
+            `stages` what each is: "pass k" where pass k starts, "end" after the last.
+        passes: (layers, 2) s each pass starts and ends (its cruise and both ramps).
+        crests: (layers,) m the target's crest after each layer; `height` the last.
+        speed: m/s a pass cruises at.
+        x, y: the pile's grid lines (m), wide enough for its foot and the end cones.
+    """
+
+    time: np.ndarray
+    rows: tuple[np.ndarray, np.ndarray, np.ndarray]
+    waypoints: Trajectory
+    stages: tuple[Stage, ...]
+    passes: np.ndarray
+    crests: np.ndarray
+    height: float
+    speed: float
+    x: np.ndarray
+    y: np.ndarray
+
+
+def plan_stacking(scene: Scene, machine: Machine, period: float) -> StackingPlan:
+    """The scene's [stacking] pattern on `machine` at the control `period`. Raises SceneError,
+    UnreachableError or EnvelopeError naming the scene and what does not fit."""
+    s, p = scene.stacking, scene.path
+    length = abs(s.axis_x[1] - s.axis_x[0])
+    height, foot = target_ridge(s)
+    if s.axis_y - foot < machine.rail_clearance:
+        raise SceneError(f"{p}: the pile's foot would reach y = {s.axis_y - foot:.2f} m ({s.tonnes:g} t on a "
+                         f"{length:g} m axis stand {height:.2f} m high, {foot:.2f} m to each side), inside the "
+                         f"{machine.rail_clearance:g} m the rail keeps clear ('rail_clearance' of {machine.path.name}): "
+                         "move 'stacking.axis_y' out or lengthen the axis")
+    crests = height * np.sqrt(np.arange(1, s.layers + 1) / s.layers)
+    g = machine.geometry  # the head no lower than the boom luffs: the first layers fall farther
+    lowest = g.pivot_height + g.boom_length * math.sin(g.boom_angle0 + machine.envelope[2, 0]) + LOWEST_MARGIN
+    heads = np.maximum(YARD_FLOOR + crests + s.drop, lowest)
+    ends = [s.axis_x[0], s.axis_x[1]]
+    knots = []  # each pass's start and end
+    for layer, head in enumerate(heads):
+        start, end = (ends if layer % 2 == 0 else ends[::-1])
+        knots.append([_ik(machine, p, (x, s.axis_y, head), f"pass {layer + 1}'s {which}")
+                      for x, which in ((start, "start"), (end, "end"))])
+    turns = [_turn_time(machine, knots[i][1], knots[i + 1][0]) for i in range(s.layers - 1)]
+    total = s.tonnes / s.rate * SECONDS_PER_HOUR
+    duration = (total - sum(turns)) / s.layers  # s of each pass
+    speed, ramp = _cruise(p, length, s.acceleration, duration, machine, s)
+    segments, passes, t = [], [], 0.0  # (start s, end s, kind, from, to)
+    for layer in range(s.layers):
+        a, b = knots[layer]
+        segments.append((t, t + duration, "pass", a, b))
+        passes.append((t, t + duration))
+        t += duration
+        if layer < s.layers - 1 and turns[layer] > 0:  # none where the next pass starts where this one ends
+            segments.append((t, t + turns[layer], "turn", b, knots[layer + 1][0]))
+            t += turns[layer]
+    samples = round(total / period) + 1
+    time = np.arange(samples) * period
+    rows = _sample(segments, time, speed, s.acceleration, ramp)
+    stops, ends_of = np.array([edge for segment in passes for edge in segment]), [q for pair in knots for q in pair]
+    kinds = [stage for layer in range(s.layers) for stage in (Stage("pass", layer + 1), Stage("move"))]
+    kinds[-1] = Stage("end")
+    kept = np.concatenate([[True], np.diff(stops) > 0])  # a pass that starts where the last ended, once
+    stages = _kept_stages(kinds, kept)
+    joints = np.array(ends_of)[kept]
+    waypoints = Trajectory(times=stops[kept], knots=joints, points=np.array([machine.fk(q) for q in joints]))
+    x, y = pile_grid(s)
+    return StackingPlan(time, rows, waypoints, stages, np.array(passes), crests, float(crests[-1]), speed, x, y)
+
+
+def _kept_stages(stages: list[Stage], kept: np.ndarray) -> tuple[Stage, ...]:
+    """The stages of the waypoints kept: where a pass starts as the last one ends, it names the point."""
+    out: list[Stage] = []
+    for stage, keep in zip(stages, kept):
+        if keep:
+            out.append(stage)
+        else:
+            out[-1] = stage
+    return tuple(out)
+
+
+def target_ridge(section) -> tuple[float, float]:
+    """The target chevron ridge of a [stacking]: its crest height H = sqrt(V tan(phi) / L) and
+    its foot's distance from the axis, H / tan(phi) (m)."""
+    length = abs(section.axis_x[1] - section.axis_x[0])
+    volume = section.tonnes * KG_PER_T / section.bulk_density
+    slope = math.tan(math.radians(section.angle_of_repose))
+    height = math.sqrt(volume * slope / length)
+    return height, height / slope
+
+
+def pile_grid(section) -> tuple[np.ndarray, np.ndarray]:
+    """The grid lines (m) of a [stacking]'s pile: the ridge's foot and GRID_MARGIN around it,
+    and along the axis half as far again, for the end cones the turns lay."""
+    _, foot = target_ridge(section)
+    reach = 1.5 * foot + GRID_MARGIN
+    x = _lines(min(section.axis_x) - reach, max(section.axis_x) + reach, section.grid_spacing)
+    y = _lines(section.axis_y - foot - GRID_MARGIN, section.axis_y + foot + GRID_MARGIN, section.grid_spacing)
+    return x, y
+
+
+def _ik(machine: Machine, scene_path, point: tuple[float, float, float], label: str) -> np.ndarray:
+    try:
+        return machine.ik(np.array(point), label=f"[stacking] {label}")
+    except (UnreachableError, EnvelopeError) as exc:
+        raise type(exc)(f"{scene_path}: {exc}") from None
+
+
+def _turn_time(machine: Machine, start: np.ndarray, end: np.ndarray) -> float:
+    """s of a rest-to-rest cubic from `start` to `end` whose top speed (1.5 x delta / span) is
+    each joint's rated speed at most."""
+    return float(max(1.5 * abs(end[j] - start[j]) / machine.rated_speed[j] for j in range(len(AXES))))
+
+
+def _cruise(scene_path, length: float, acceleration: float, duration: float, machine: Machine,
+            section) -> tuple[float, float]:
+    """The cruise speed (m/s) of a trapezoid over `length` m at `acceleration` that takes
+    `duration` s, and its ramps' time (s). SceneError if no such trapezoid exists, or if it
+    cruises faster than the travel's rated speed."""
+    need = 2.0 * math.sqrt(length / acceleration)  # the fastest: up and straight down again
+    if not duration >= need:
+        raise SceneError(f"{scene_path}: [stacking] leaves each of its {section.layers} passes {duration:.1f} s "
+                         f"({section.tonnes:g} t at {section.rate:g} t/h), less than the {need:.1f} s a "
+                         f"{length:g} m pass takes at {acceleration:g} m/s^2: fewer layers or a shorter axis")
+    # duration = length / v + v / a: the smaller root, the one that cruises
+    speed = 0.5 * acceleration * (duration - math.sqrt(duration**2 - 4.0 * length / acceleration))
+    rated = machine.rated_speed[0]
+    if speed > rated:
+        raise SceneError(f"{scene_path}: [stacking]'s passes would cruise at {speed:.3f} m/s, above the travel's rated "
+                         f"{describe(0, rated)}/s ({machine.path.name}): more tonnes a layer (fewer 'layers'), a "
+                         "shorter axis or a lower rate")
+    return speed, speed / acceleration
+
+
+def _sample(segments, time: np.ndarray, speed: float, acceleration: float, ramp: float):
+    """(samples, 3) positions, velocities and accelerations of the segments at `time`."""
+    q, qd, qdd = (np.zeros((len(time), 3)) for _ in range(3))
+    starts = np.array([segment[0] for segment in segments])
+    which = np.clip(np.searchsorted(starts, time, side="right") - 1, 0, len(segments) - 1)
+    for i, (t0, t1, kind, a, b) in enumerate(segments):
+        rows = which == i
+        t = np.clip(time[rows] - t0, 0.0, t1 - t0)
+        if kind == "turn":
+            span = t1 - t0
+            q[rows], qd[rows], qdd[rows] = rest_to_rest(a, b, span, (t / span)[:, None])
+            continue
+        direction = math.copysign(1.0, b[0] - a[0])
+        distance, velocity, accel = _trapezoid(t, t1 - t0, abs(b[0] - a[0]), speed, acceleration, ramp)
+        q[rows] = a
+        q[rows, 0] = a[0] + direction * distance
+        qd[rows, 0], qdd[rows, 0] = direction * velocity, direction * accel
+    return q, qd, qdd
+
+
+def _trapezoid(t: np.ndarray, duration: float, length: float, speed: float, acceleration: float, ramp: float):
+    """Distance, speed and acceleration at t s of a pass over `length` m: up at `acceleration`
+    for `ramp` s, `speed`, then down, ending at rest at `duration` s."""
+    left = duration - t
+    up, down = t < ramp, left < ramp
+    distance = np.where(up, 0.5 * acceleration * t**2,
+                        np.where(down, length - 0.5 * acceleration * left**2, 0.5 * speed * ramp + speed * (t - ramp)))
+    velocity = np.where(up, acceleration * t, np.where(down, acceleration * left, speed))
+    accel = np.where(up, acceleration, np.where(down, -acceleration, 0.0))
+    return distance, velocity, accel
+
+
+def _lines(low: float, high: float, spacing: float) -> np.ndarray:
+    """Grid lines every `spacing` m from a multiple of it at or below `low` to one at or above `high`."""
+    first, last = math.floor(low / spacing), math.ceil(high / spacing)
+    return np.arange(first, last + 1) * spacing

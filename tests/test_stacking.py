@@ -1,0 +1,153 @@
+"""Stacking in a run: the heavy stacker lays a small chevron pile on its pattern, the stream's
+tonnes and grade balance with what the pile holds, no slope stands steeper than the angle of
+repose, the layers hold the grade each deposit came at, and the run's files keep all of it."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from conftest import SCENES
+
+from bwr_twin import SceneError
+from bwr_twin.config.scene import load_scene
+from bwr_twin.model.machine import Machine
+from bwr_twin.planning.stacking import plan_stacking
+from bwr_twin.results.rundir import read_timeseries, write_run
+from bwr_twin.results.summary import summary_table
+from bwr_twin.sim.lockstep import simulate
+from bwr_twin.stockpile.relaxation import Talus
+
+SCENE = SCENES / "heavy_chevron_stack.toml"
+# 2,000 t in 4 layers on a 40 m axis: 720 s of stacking.
+SMALL = {"stacking.tonnes": 2000.0, "stacking.layers": 4, "stacking.axis_x": [-20.0, 20.0],
+         "simulation.record_period": 0.5}
+
+
+@pytest.fixture(scope="module")
+def stacked():
+    return simulate(load_scene(SCENE, SMALL))
+
+
+def test_the_tonnes_and_the_grade_balance_exactly(stacked):
+    """What came in, deposit by deposit, is what the pile's layers hold, in tonnes and in
+    tonnes x grade, to 1e-9; and it is the rate over the run."""
+    metrics, record = stacked.metrics["stacking"], stacked.stacking
+    section = stacked.scene.stacking
+    assert metrics["tonnes_in_t"] == pytest.approx(section.rate * stacked.time[-1] / 3600, rel=1e-12)
+    assert metrics["tonnes_in_t"] == pytest.approx(section.tonnes, rel=1e-9)
+    held = float(np.sum(record.thickness)) * 0.5**2 * section.bulk_density / 1000
+    grade_held = float(np.sum(record.thickness * record.layer_grade)) * 0.5**2 * section.bulk_density / 1000
+    assert abs(held - record.tonnes.sum()) <= 1e-9 * held
+    assert abs(grade_held - np.sum(record.tonnes * record.grade)) <= 1e-9 * grade_held
+    assert abs(metrics["balance_relative"]) <= 1e-9 and abs(metrics["grade_balance_relative"]) <= 1e-9
+    np.testing.assert_allclose(record.thickness.sum(axis=2), record.z, atol=1e-9)  # the layers are the heights
+
+
+def test_no_slope_stands_steeper_than_the_angle_of_repose(stacked):
+    section = stacked.scene.stacking
+    talus = Talus.of(section.grid_spacing, section.angle_of_repose)
+    assert talus.excess(stacked.stacking.z) <= talus.tolerance
+    assert stacked.metrics["stacking"]["relaxations_unconverged"] == 0
+
+
+def test_the_machine_lays_a_chevron_ridge_along_its_axis(stacked):
+    """The discharge point runs to and fro over the axis; the pile is a ridge there, its crest
+    near the target's, standing at the angle of repose across it."""
+    section, record, metrics = stacked.scene.stacking, stacked.stacking, stacked.metrics["stacking"]
+    np.testing.assert_allclose(record.point[:, 1], section.axis_y, atol=0.3)  # on the axis, within the tracking
+    assert record.point[:, 0].min() == pytest.approx(-20.0, abs=0.3) and record.point[:, 0].max() == pytest.approx(20.0, abs=0.3)
+    assert 0.85 * metrics["target_height_m"] < metrics["crest_height_m"] < 1.15 * metrics["target_height_m"]
+    middle = np.argmin(np.abs(record.x))
+    across = record.z[:, middle]
+    assert record.y[np.argmax(across)] == pytest.approx(section.axis_y, abs=1.0)
+    flank = np.diff(across)[across[1:] > 0.5] / section.grid_spacing  # where it stands, not at its foot
+    assert np.abs(flank).max() <= np.tan(np.radians(section.angle_of_repose)) * 1.01
+
+
+def test_the_layers_hold_the_grade_each_deposit_came_at(stacked):
+    """The first deposit lies at the bottom of the column under the pile's start, the last on
+    top of the column under the last pass's end; the grade that came in has the scene's mean."""
+    record = stacked.stacking
+    ix = np.argmin(np.abs(record.x - record.point[0, 0]))
+    iy = np.argmin(np.abs(record.y - record.point[0, 1]))
+    assert record.layer_grade[iy, ix, 0] == pytest.approx(record.grade[0])
+    ix = np.argmin(np.abs(record.x - record.point[-1, 0]))
+    iy = np.argmin(np.abs(record.y - record.point[-1, 1]))
+    top = record.count[iy, ix] - 1
+    assert record.layer_grade[iy, ix, top] == pytest.approx(record.grade[-1])
+    assert stacked.metrics["stacking"]["grade_in_mean"] == pytest.approx(62.0, abs=1.0)
+
+
+def test_the_same_seed_stacks_the_same_pile_and_another_seed_another(stacked):
+    again = simulate(load_scene(SCENE, SMALL))
+    np.testing.assert_array_equal(again.stacking.layer_grade, stacked.stacking.layer_grade)
+    other = simulate(load_scene(SCENE, {**SMALL, "simulation.seed": 2}))
+    assert not np.array_equal(other.stacking.grade, stacked.stacking.grade)
+
+
+def test_the_run_directory_keeps_the_layers_the_deposits_and_the_grade_in_time(stacked, tmp_path):
+    write_run(stacked, tmp_path / "run")
+    with np.load(tmp_path / "run" / "pile.npz") as pile:
+        np.testing.assert_array_equal(pile["layer_grade"], stacked.stacking.layer_grade)
+        np.testing.assert_array_equal(pile["deposit_grade"], stacked.stacking.grade)
+        np.testing.assert_array_equal(pile["z_end"], stacked.stacking.z)
+    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    assert columns["stacked_t"][-1] == pytest.approx(2000.0, rel=1e-6)
+    assert np.isfinite(columns["stacking_grade_in_Fe %"]).all()
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["stacking"]["layers"] == 4
+    assert (tmp_path / "run" / "stacking.png").stat().st_size > 10_000
+    assert "stacked 2,000.0 t in 4 chevron layers" in summary_table(metrics)
+
+
+def test_the_plan_holds_the_drop_above_each_crest_and_luffs_up_between_passes():
+    scene = load_scene(SCENE, SMALL)
+    machine = Machine(scene.machine.mjcf)
+    plan = plan_stacking(scene, machine, scene.simulation.control_period)
+    heads = machine.fk(plan.rows[0])[:, 2]
+    for (start, end), crest in zip(plan.passes, plan.crests):
+        during = (plan.time > start) & (plan.time < end)
+        lowest = heads[during].min()
+        assert lowest >= crest + scene.stacking.drop - 1e-6  # the drop, or higher where the boom luffs no lower
+    assert np.all(np.diff(plan.crests) > 0)
+    assert np.abs(plan.rows[1][:, 0]).max() == pytest.approx(plan.speed) and plan.speed <= machine.rated_speed[0]
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"stacking.layers": 12}, r"passes would cruise at 1.000 m/s, above the travel's rated 0.500 m/s \(stacker_heavy.xml\)"),
+    ({"stacking.layers": 40}, r"leaves each of its 40 passes 18.0 s \(2000 t at 10000 t/h\), less than the 56.6 s"),
+    ({"stacking.axis_y": 12.0}, r"the pile's foot would reach y = .* inside the 8 m the rail keeps clear"),
+    ({"stacking.axis_x": [0.0, 1.0]}, r"'stacking.axis_x' must span at least 4 grid cells"),
+    ({"stacking.grade.file": "grade.csv"}, r"\[stacking.grade\] needs either a 'mean'"),
+    ({"path.frame": "world", "path.via_points": [{"t": 0.0, "p": [0.0, 0.0, 0.0]}]},
+     r"needs one of a \[path\] of via points, a \[reclaim\] or a \[stacking\], got \[path\] and \[stacking\]"),
+])
+def test_a_stacking_the_machine_cannot_do_is_refused_naming_the_key(overrides, message, tmp_path):
+    (tmp_path / "grade.csv").write_text("t,grade\n0,62\n")
+    overrides = {k: (str(tmp_path / v) if k.endswith("file") else v) for k, v in overrides.items()}
+    with pytest.raises(SceneError, match=message):
+        simulate(load_scene(SCENE, {**SMALL, **overrides}))
+
+
+def test_the_replay_shows_the_pile_growing_from_the_bare_yard():
+    """Kept for a replay, the pile's frames rebuild it as it grew: less at half time than at the
+    end, and at the end the pile the run stacked."""
+    from bwr_twin.replay import Recording
+
+    result = simulate(load_scene(SCENE, SMALL), pile_frame_period=10.0)
+    recording = Recording.from_result(result)
+    pile = recording.pile
+    assert recording.plan.activity == "stacking" and recording.plan.names[0] == "pass 1"
+
+    def heights_until(t: float) -> np.ndarray:
+        z = pile.z_start.copy().ravel()
+        for i in np.flatnonzero(pile.frame_time <= t):
+            z[pile.cells[pile.offsets[i]:pile.offsets[i + 1]]] = pile.heights[pile.offsets[i]:pile.offsets[i + 1]]
+        return z.reshape(pile.z_start.shape)
+
+    assert pile.z_start.max() == 0.0
+    middle, end = heights_until(360.0), heights_until(result.time[-1])
+    assert 0.3 * end.sum() < middle.sum() < 0.7 * end.sum()
+    np.testing.assert_allclose(end, result.stacking.z, atol=1e-5)  # float32 frames
