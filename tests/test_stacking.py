@@ -151,3 +151,69 @@ def test_the_replay_shows_the_pile_growing_from_the_bare_yard():
     middle, end = heights_until(360.0), heights_until(result.time[-1])
     assert 0.3 * end.sum() < middle.sum() < 0.7 * end.sum()
     np.testing.assert_allclose(end, result.stacking.z, atol=1e-5)  # float32 frames
+
+
+RECLAIM_STACKED = '''extends = "heavy_bench_reclaim"
+[stockpile]
+surface_file = "stack/pile.npz"
+grid_spacing = 0.5
+[reclaim]
+bench_height = 4.0
+start = [-100.0, 15.0, 5.0]
+'''
+
+
+@pytest.fixture(scope="module")
+def reclaimed(stacked, tmp_path_factory):
+    """The small stacked pile, written as its run directory, then bench-reclaimed by the heavy
+    reclaimer from its pile.npz: one 4 m bench of 10 m."""
+    folder = tmp_path_factory.mktemp("blend")
+    write_run(stacked, folder / "stack", plots=False)
+    (folder / "reclaim.toml").write_text(RECLAIM_STACKED)
+    return simulate(load_scene(folder / "reclaim.toml")), folder
+
+
+def test_a_stacked_pile_reclaimed_balances_its_tonnes_and_grade_exactly(reclaimed):
+    """The pile's layers at the start are what they hold at the end, what the buckets carried and
+    what spilled, in tonnes and in tonnes x grade, to 1e-9; what left is the reclaim's tonnes."""
+    result, _ = reclaimed
+    blend = result.metrics["blend"]
+    assert abs(blend["balance_relative"]) <= 1e-9 and abs(blend["grade_balance_relative"]) <= 1e-9
+    assert blend["tonnes_out_t"] == pytest.approx(result.metrics["reclaim"]["mass_t"], rel=1e-12)
+    assert blend["tonnes_out_t"] > 300.0
+
+
+def test_the_grade_that_left_is_the_stacked_grade_blended(reclaimed, stacked):
+    """Each bucket carries a mix of the layers it cut through: the grade out lies within what was
+    stacked, and varies less than what came in."""
+    result, _ = reclaimed
+    blend, out = result.metrics["blend"], result.reclaim.grade_out
+    assert stacked.stacking.grade.min() <= out["grade"].min() and out["grade"].max() <= stacked.stacking.grade.max()
+    assert blend["grade_in_sd"] == pytest.approx(stacked.metrics["stacking"]["grade_in_sd"], rel=1e-12)
+    assert blend["grade_out_sd"] < blend["grade_in_sd"] and blend["sd_ratio"] < 1.0
+    assert blend["belt_delay_s"] == pytest.approx(40.0 / 4.5)  # the heavy machine's belt scale (mjcf/README.md)
+    assert "blended: " in summary_table(result.metrics)
+
+
+def test_the_run_directory_keeps_the_grade_out_after_the_belt_delay(reclaimed, tmp_path):
+    result, _ = reclaimed
+    write_run(result, tmp_path / "run", plots=False)
+    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    grade = columns["grade_out_Fe %"]
+    first = result.reclaim.grade_out["t"][0]
+    assert np.isnan(grade[columns["time_s"] < first - 1e-9]).all()
+    assert grade[np.searchsorted(columns["time_s"], first)] == pytest.approx(result.reclaim.grade_out["grade"][0])
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("grid_spacing = 0.5", "grid_spacing = 0.25",
+     (r"a stacked pile is reclaimed on the grid it was stacked on, its layers cell by cell: 'stockpile.grid_spacing' "
+      r"must be its 0.5 m, got 0.25 m")),
+    ("grid_spacing = 0.5", "grid_spacing = 0.5\nbulk_density = 2000.0",
+     r"'stockpile.bulk_density' \(2000 kg/m3\) must be the 2400 kg/m3 its stacked pile was laid at"),
+])
+def test_a_stacked_pile_on_another_grid_or_density_is_refused(reclaimed, old, new, message):
+    _, folder = reclaimed
+    (folder / "bad.toml").write_text(RECLAIM_STACKED.replace(old, new))
+    with pytest.raises(SceneError, match=message):
+        simulate(load_scene(folder / "bad.toml"))

@@ -72,6 +72,12 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
                 for c, coordinate in enumerate("xyz"):
                     names.append(column.format(xyz=coordinate))
                     columns.append(values[:, c])
+    if reclaim is not None and reclaim.grade_out is not None:  # the grade of the last discharge to pass
+        out = reclaim.grade_out
+        index = np.searchsorted(out["t"], result.time, side="right") - 1
+        names.append(f"grade_out_{out['name']}")
+        columns.append(np.where(index >= 0, out["grade"][np.clip(index, 0, None)], np.nan) if len(out["t"])
+                       else np.full(len(result.time), np.nan))
     if result.stacking is not None:
         grade_in, stacked = result.stacking.series(result.time)
         names += [f"stacking_grade_in_{result.stacking.grade_name}", "stacked_t"]

@@ -37,6 +37,9 @@ def summary_table(metrics: dict) -> str:
     stacking = metrics.get("stacking")
     if stacking is not None:
         lines.append(stacking_line(stacking))
+    blend = metrics.get("blend")
+    if blend is not None:
+        lines.append(blend_line(blend))
     scan = metrics.get("scan")
     if scan is not None and scan.get("plan_start") is not None:
         lines.append(scan_line("the benches planned on the scanned pile", scan["plan_start"]))
@@ -60,6 +63,18 @@ def stacking_line(stacking: dict) -> str:
             f"{stacking['target_height_m']:.2f} m); grade in {stacking['grade_in_mean']:.3f} ± "
             f"{stacking['grade_in_sd']:.3f} {name}; the pile holds {stacking['pile_t']:,.1f} t "
             f"(balance {stacking['balance_relative']:.1e})")
+
+
+def blend_line(blend: dict) -> str:
+    """The grade that left a stacked pile against what was stacked, and the band."""
+    name = blend["grade_name"]
+    band = blend["band"]
+    outside = (f"; outside the {band[0]:g}-{band[1]:g} {name} band for {blend['longest_outside_band_s']:.1f} s "
+               "at most" if band is not None else "")
+    return (f"blended: {blend['tonnes_out_t']:,.1f} t out at {blend['grade_out_mean']:.3f} ± "
+            f"{blend['grade_out_sd']:.3f} {name} (stacked at {blend['grade_in_mean']:.3f} ± "
+            f"{blend['grade_in_sd']:.3f} in {blend['layers']} layers): sd ratio {blend['sd_ratio']:.3f}, "
+            f"1/sqrt(N) {blend['sqrt_n_ratio']:.3f}{outside}; balance {blend['balance_relative']:.1e}")
 
 
 def intervention_text(intervention: dict) -> str:

@@ -471,6 +471,8 @@ class Lockstep:
                 run_metrics["scan"] = self.scanning.metrics(run, self.reclaim.cutter.heights[run])
             if self.stacking is not None:
                 run_metrics["stacking"] = self.stacking.metrics(run)
+            if self.reclaim is not None and self.reclaim.stacked is not None:
+                run_metrics["blend"] = self.reclaim.blend_metrics(run)
             if self.collision is not None or self.machines is not None:
                 run_metrics["collision"] = self._collision_metrics(run)
             run_metrics["run"] = {
@@ -487,7 +489,8 @@ class Lockstep:
             result = recorder.run_result(run, scene=scene, machine=self.machine, trajectory=waypoints,
                                          time=self.time, metrics=run_metrics)
             if self.reclaim is not None:
-                result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run))
+                result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **self.reclaim.pile(run),
+                                               grade_out=self.reclaim.grade_out(run))
             if self.scanning is not None:
                 result.scan = self.scanning.record(run, self.duration)
             if self.stacking is not None:

@@ -32,6 +32,8 @@ class ReclaimRecord:
     z_start: np.ndarray  # (ny, nx) m
     z_end: np.ndarray
     history: Any  # bwr_twin.stockpile.history.PileHistory: the pile as it was dug, if kept; else None
+    # On a stacked pile, the grade that left it (bwr_twin.stockpile.reclaim.Reclaim.grade_out); else None
+    grade_out: dict | None = None
 
 
 @dataclass

@@ -5,6 +5,10 @@ discharges a minute) that bucket discharges up to its volume onto the boom conve
 spills and is reported, not counted as reclaimed. The reclaim rate is the conveyor's load: each
 discharge spread over the next bucket interval, as a belt scale sees it. So the rate's integral
 is exactly what the buckets discharged, once the last discharge has passed.
+
+On a pile whose grade is known (a stacked one, bwr_twin.stockpile.stacked), the bucket also
+carries the grade x volume of what it dug, mixed: a discharge carries its share of it and the
+spill the rest, and each discharge's time, volume and grade are kept (`discharges`).
 """
 
 from __future__ import annotations
@@ -40,15 +44,24 @@ class Conveyor:
         self.carrying_periods = np.zeros(runs, dtype=np.int64)
         self.rate_sum, self.rate_square_sum = np.zeros(runs), np.zeros(runs)  # t/h, over carrying periods
         self.rate_max = np.zeros(runs)
+        self.bucket_grade: np.ndarray | None = None  # grade x m^3 in the bucket in the cut, if graded
+        self.discharges: list[list[tuple[float, float, float]]] = [[] for _ in range(runs)]
+        self.spilled_grade = np.zeros(runs)  # grade x m^3 spilled
 
-    def load(self, k: int, volume: np.ndarray) -> None:
-        """Period k's cut, `volume` (runs,) m^3, goes into the buckets; one discharges as the period
-        ends if its interval is up."""
+    def track_grade(self) -> None:
+        """Carry the grade of what is dug: `load` is then given its grade x volume."""
+        self.bucket_grade = np.zeros(len(self.bucket))
+
+    def load(self, k: int, volume: np.ndarray, grade_volume: np.ndarray | None = None) -> None:
+        """Period k's cut, `volume` (runs,) m^3 (and on a graded pile its grade x m^3), goes into
+        the buckets; one discharges as the period ends if its interval is up."""
         if self._next_rate is not None:  # a bucket discharged as the last period ended
             self.rate[:] = self._next_rate
             self._next_rate = None
         self.dug += volume
         self.bucket += volume
+        if self.bucket_grade is not None:
+            self.bucket_grade += grade_volume
         if self._discharging:
             self.discharged[:] = 0.0
             self._discharging = False
@@ -62,7 +75,7 @@ class Conveyor:
     def finish(self, k: int) -> None:
         """After the last period k: the bucket in the cut discharges, and what the belt would
         carry after the end is not counted as conveyed."""
-        self.discharged[:] = self._discharge()
+        self.discharged[:] = self._discharge((k + 1) * self.period)
         self._discharging = True
         beyond = self._hold_end - k
         if beyond > 0:
@@ -87,11 +100,18 @@ class Conveyor:
             "dug_m3": float(self.dug[run]),
         }
 
-    def _discharge(self) -> np.ndarray:
-        """Empty the bucket in the cut: up to its volume is carried, the rest spills; m^3 carried."""
+    def _discharge(self, time: float) -> np.ndarray:
+        """Empty the bucket in the cut at `time` (s): up to its volume is carried, the rest spills;
+        m^3 carried."""
         carried = np.minimum(self.bucket, self.wheel.bucket_volume)
         self.carried += carried
         self.spilled += self.bucket - carried
+        if self.bucket_grade is not None:
+            for run in np.flatnonzero(carried > 0):
+                grade = self.bucket_grade[run] / self.bucket[run]  # mixed: carried and spilled alike
+                self.spilled_grade[run] += grade * (self.bucket[run] - carried[run])
+                self.discharges[run].append((time, float(carried[run]), float(grade)))
+            self.bucket_grade[:] = 0.0
         self.bucket[:] = 0.0
         return carried
 
@@ -99,7 +119,7 @@ class Conveyor:
         """The bucket discharges as period k ends; the belt carries its load, evenly, over the
         periods until the next discharge. The rate is constant over them: its statistics are
         added for the whole hold at once (and the part beyond the end taken off again)."""
-        carried = self._discharge()
+        carried = self._discharge((k + 1) * self.period)
         self.discharged[:] = carried
         self._discharging = True
         following = self._discharge_at + self.bucket_interval

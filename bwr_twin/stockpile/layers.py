@@ -140,6 +140,17 @@ class LayeredPile:
         area = self.cell_area
         return Removed(volume.reshape(self.z.shape) * area, grade_volume.reshape(self.z.shape) * area)
 
+    def cut_cells(self, cells: np.ndarray, heights: np.ndarray) -> tuple[float, float]:
+        """Lower the flat `cells` (k,) to `heights` (k,) m, as cut_to does, visiting those cells
+        alone (a wheel's cut, a few thousand of the grid's cells); returns the m^3 and grade x m^3
+        taken."""
+        cells = np.asarray(cells, dtype=np.int64)
+        flat = self.z.reshape(-1)
+        depth = np.maximum(flat[cells] - np.maximum(heights, YARD_FLOOR), 0.0)
+        volume, grade_volume = _take_cells(*self._columns(), cells, depth)
+        flat[cells] -= depth
+        return volume * self.cell_area, grade_volume * self.cell_area
+
     def relax(self, talus: Talus, max_rounds: int = DEFAULT_MAX_ROUNDS) -> Relaxed:
         """Relax the pile to the angle of repose (bwr_twin.stockpile.relaxation), `talus` made
         for its grid: the heights slump, and each move carries the top of the higher column,
@@ -167,19 +178,40 @@ def _deposit(thickness, grade, count, added, added_grade):
 @numba.njit(cache=True)
 def _take(thickness, grade, count, depth, volume, grade_volume):
     """Take `depth` (cells,) m off the top of each column, adding what was taken (m, grade x m)
-    to volume and grade_volume; a column holding less (by rounding) gives all it holds."""
+    to volume and grade_volume."""
     for cell in range(len(depth)):
-        left = depth[cell]
-        while left > 0.0 and count[cell] > 0:
-            top = count[cell] - 1
-            piece = min(left, thickness[cell, top])
-            volume[cell] += piece
-            grade_volume[cell] += piece * grade[cell, top]
-            left -= piece
-            if piece == thickness[cell, top]:
-                _pop(thickness, grade, count, cell)
-            else:
-                thickness[cell, top] -= piece
+        taken, taken_grade = _take_one(thickness, grade, count, cell, depth[cell])
+        volume[cell] += taken
+        grade_volume[cell] += taken_grade
+
+
+@numba.njit(cache=True)
+def _take_cells(thickness, grade, count, cells, depth):
+    """_take for the listed cells alone, depth[i] off cells[i]; returns the totals (m, grade x m)."""
+    total = total_grade = 0.0
+    for i in range(len(cells)):
+        taken, taken_grade = _take_one(thickness, grade, count, cells[i], depth[i])
+        total += taken
+        total_grade += taken_grade
+    return total, total_grade
+
+
+@numba.njit(cache=True)
+def _take_one(thickness, grade, count, cell, depth):
+    """Take `depth` m off the top of one column, layer by layer; returns what it took (m, grade
+    x m). A column holding less (by rounding) gives all it holds."""
+    left, taken, taken_grade = depth, 0.0, 0.0
+    while left > 0.0 and count[cell] > 0:
+        top = count[cell] - 1
+        piece = min(left, thickness[cell, top])
+        taken += piece
+        taken_grade += piece * grade[cell, top]
+        left -= piece
+        if piece == thickness[cell, top]:
+            _pop(thickness, grade, count, cell)
+        else:
+            thickness[cell, top] -= piece
+    return taken, taken_grade
 
 
 @numba.njit(cache=True)

@@ -1,23 +1,44 @@
 """The reclaim of every run of a lockstep, one control period at a time: the cut (its Cutter,
 the one owner of the piles' heights), the bucket and belt (`Conveyor`), the digging load
 (`DiggingLoad`, when the scene has [digging]), and the pile as it was dug, for a replay.
+
+On a stacked pile (bwr_twin.stockpile.stacked) each run's layers follow its heights: the cells
+the wheel lowered give up their layers from the top, and the grade of what was cut goes into the
+bucket with it; `blend_metrics` says what left the pile against what was stacked.
 """
 
 from __future__ import annotations
 
+import copy
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from bwr_twin.config.scene import Scene
+from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
 from bwr_twin.stockpile.conveyor import Conveyor
 from bwr_twin.stockpile.cutting import Cut, Cutter
 from bwr_twin.stockpile.digging import DiggingLoad
 from bwr_twin.stockpile.history import PileHistory
+from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.stockpile.stacked import read_stacked
+from bwr_twin.stockpile.surface import Surface, is_stacked_pile
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
+
+
+def _longest_outside(t: np.ndarray, grade: np.ndarray, band: tuple[float, float] | None, interval: float) -> float | None:
+    """s of the longest run of discharges outside the band, each standing for a bucket interval;
+    None without a band."""
+    if band is None:
+        return None
+    longest = current = 0.0
+    for value in grade:
+        current = current + interval if not band[0] <= value <= band[1] else 0.0
+        longest = max(longest, current)
+    return longest
 
 
 class Reclaim:
@@ -46,6 +67,10 @@ class Reclaim:
                                        np.array([d.idle_power if d else 0.0 for d in digging]),
                                        np.array([d.lateral_ratio if d else 0.0 for d in digging]),
                                        self.conveyor.bucket_interval, period)
+        self.stacked = None
+        self.layers: list[LayeredPile] | None = None
+        if is_stacked_pile(scenes[0].stockpile.surface_file):
+            self._stack(scenes)
         zeros = np.zeros(runs)
         self.rate = self.conveyor.rate
         self.power = self.digging.power if self.digging is not None else zeros
@@ -64,12 +89,79 @@ class Reclaim:
         or None when there is none."""
         self.cp = cp = self.machine.fk(q)
         self.cut = cut = self.cutter.cut(cp, q[:, 1], runs)
-        self.conveyor.load(k, cut.volume)
+        self.conveyor.load(k, cut.volume, self._cut_layers(cut) if self.layers is not None else None)
         self.depth[:] = cut.depth
         np.maximum(self.depth_max, cut.depth, out=self.depth_max)
         if self._framed is not None and k % self._frame_every == 0:
             self._keep_frame(k)
         return self.digging.step(q, cp, cut) if self.digging is not None else None
+
+    def _stack(self, scenes: Sequence[Scene]) -> None:
+        """Lay the stacked pile's layers under every run's heights; SceneError if it was stacked at
+        another bulk density than the scene's."""
+        scene = scenes[0]
+        self.stacked = stacked = read_stacked(scene.stockpile.surface_file, self.surface, scene.path)
+        if not math.isclose(stacked.bulk_density, scene.stockpile.bulk_density, rel_tol=1e-9):
+            raise SceneError(f"{scene.path}: 'stockpile.bulk_density' ({scene.stockpile.bulk_density:g} kg/m3) must "
+                             f"be the {stacked.bulk_density:g} kg/m3 its stacked pile was laid at "
+                             f"({scene.stockpile.surface_file})")
+        self.layers = [copy.deepcopy(stacked.pile) for _ in scenes]
+        self.conveyor.track_grade()
+
+    def _cut_layers(self, cut: Cut) -> np.ndarray:
+        """(runs,) grade x m^3 of what each run's wheel cut this period: its layers lowered to the
+        cut heights, in the cells the cut lowered."""
+        grade_volume = np.zeros(len(self.layers))
+        for run in np.flatnonzero(cut.volume > 0):
+            layers, heights = self.layers[run], self.cutter.heights[run].reshape(-1)
+            cells = np.flatnonzero(layers.z.reshape(-1) > heights)
+            _, grade_volume[run] = layers.cut_cells(cells, heights[cells])
+        return grade_volume
+
+    @property
+    def belt_delay(self) -> float:
+        """s from a discharge to where the grade out is taken: the belt scale's place on the boom
+        conveyor, if the machine has one (its MJCF's), else the discharge itself."""
+        scale = self.machine.belt_scale
+        return scale.delay if scale is not None else 0.0
+
+    def blend_metrics(self, run: int) -> dict:
+        """metrics.json's `blend` object on a stacked pile (output contract): the grade of what the
+        buckets carried against what was stacked, the band, and the balances."""
+        stacked, conveyor = self.stacked, self.conveyor
+        t, volume, grade = self.discharges(run)
+        density = self.density[run] / KG_PER_T  # t/m^3
+        tonnes = volume * density
+        out = float(tonnes.sum())
+        mean = float(np.sum(tonnes * grade) / out) if out > 0 else float("nan")
+        sd = float(np.sqrt(np.sum(tonnes * (grade - mean) ** 2) / out)) if out > 0 else float("nan")
+        start = stacked.pile
+        held = self.layers[run]
+        left = (held.volume() + conveyor.carried[run] + conveyor.spilled[run] + conveyor.bucket[run])
+        left_grade = (held.grade_volume() + float(np.sum(volume * grade)) + conveyor.spilled_grade[run]
+                      + conveyor.bucket_grade[run])
+        return {
+            "grade_name": stacked.grade_name,
+            "layers": stacked.layers,
+            "tonnes_out_t": out,
+            "grade_in_mean": stacked.grade_in_mean,
+            "grade_in_sd": stacked.grade_in_sd,
+            "grade_out_mean": mean,
+            "grade_out_sd": sd,
+            "sd_ratio": sd / stacked.grade_in_sd if stacked.grade_in_sd > 0 else float("nan"),
+            "sqrt_n_ratio": 1.0 / math.sqrt(stacked.layers),
+            "variance_reduction": (stacked.grade_in_sd / sd) ** 2 if sd > 0 else float("inf"),
+            "band": list(stacked.band) if stacked.band is not None else None,
+            "longest_outside_band_s": _longest_outside(t, grade, stacked.band, self.conveyor.bucket_interval),
+            "belt_delay_s": self.belt_delay,
+            "balance_relative": (start.volume() - left) / start.volume(),
+            "grade_balance_relative": (start.grade_volume() - left_grade) / start.grade_volume(),
+        }
+
+    def discharges(self, run: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(n,) each discharge's time (s), volume carried (m^3) and grade, on a stacked pile."""
+        rows = np.array(self.conveyor.discharges[run], dtype=float).reshape(-1, 3)
+        return rows[:, 0], rows[:, 1], rows[:, 2]
 
     def carried_tonnes(self) -> np.ndarray:
         """(runs,) t the buckets have discharged onto the belt so far."""
@@ -96,6 +188,15 @@ class Reclaim:
             "digging_force_max_N": float(self.digging.force_max[run]) if self.digging is not None else 0.0,
             "wheel_capacity_tph": self.wheel.capacity * self.density[run] * SECONDS_PER_HOUR / KG_PER_T,
         }
+
+    def grade_out(self, run: int) -> dict | None:
+        """On a stacked pile, the grade that left it: each discharge's time at the belt's end of
+        the delay (s), its tonnes and grade, and the grade's name; else None."""
+        if self.stacked is None:
+            return None
+        t, volume, grade = self.discharges(run)
+        return {"t": t + self.belt_delay, "tonnes": volume * self.density[run] / KG_PER_T, "grade": grade,
+                "name": self.stacked.grade_name}
 
     def pile(self, run: int) -> dict:
         """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept)."""

@@ -39,7 +39,8 @@ class StackingRecord:
         point: (deposits, 2) world x, y (m) where it landed.
         x, y: the pile's grid lines (m); z: (ny, nx) heights at the end (m);
         thickness, layer_grade: (ny, nx, max_layers) its layers from the floor up; count (ny, nx).
-        grade_name: what the grade is ("Fe %").
+        grade_name: what the grade is ("Fe %"); bulk_density kg/m^3; layers the pattern's passes;
+            band the grade the customer accepts, or None.
         history: the heights as they grew, frame by frame, if kept for a replay.
     """
 
@@ -54,6 +55,9 @@ class StackingRecord:
     layer_grade: np.ndarray
     count: np.ndarray
     grade_name: str
+    bulk_density: float  # kg/m^3
+    layers: int  # the pattern's passes
+    band: tuple[float, float] | None  # the grade the customer accepts, or None
     history: PileHistory | None = None  # the pile as it grew, if kept for a replay
 
     def series(self, time: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -68,7 +72,9 @@ class StackingRecord:
         history = self.history.arrays() if self.history is not None else {}
         return dict(x=self.x, y=self.y, z_start=np.zeros_like(self.z), z_end=self.z, layer_thickness=self.thickness,
                     layer_grade=self.layer_grade, layer_count=self.count, deposit_t=self.t,
-                    deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point, **history)
+                    deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point,
+                    bulk_density=self.bulk_density, grade_name=self.grade_name, layers=self.layers,
+                    **({"grade_band": np.array(self.band)} if self.band is not None else {}), **history)
 
 
 class Stacking:
@@ -127,9 +133,10 @@ class Stacking:
         t, grade, tonnes, x, y = self._deposits(run)
         history = (PileHistory.from_frames(pile.x, pile.y, np.zeros_like(pile.z), self._frames[run])
                    if self._framed is not None else None)
+        section = self.section
         return StackingRecord(t, grade, tonnes, np.column_stack([x, y]), pile.x, pile.y, pile.z.copy(),
-                              pile.thickness.copy(), pile.grade.copy(), pile.count.copy(), self.section.grade.name,
-                              history)
+                              pile.thickness.copy(), pile.grade.copy(), pile.count.copy(), section.grade.name,
+                              section.bulk_density, section.layers, section.grade.band, history)
 
     def _deposits(self, run: int) -> tuple[np.ndarray, ...]:
         """(deposits,) times, grades, tonnes, x and y of the run's deposits."""

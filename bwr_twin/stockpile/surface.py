@@ -8,6 +8,7 @@ the yard floor (world Z = 0); the ground around the pile is at 0.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from bwr_twin.values import reads_as_number
 
 YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
 MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
+STACKED_KEY = "layer_thickness"  # the array that makes a pile.npz a stacked pile's (bwr_twin.stockpile.stacked)
 # The fewest grid cells across a pile's footprint, both ways. Sampled 8 cells across, a windrow of
 # 37 deg flanks keeps its volume within 1.7 % (measured: within 0.9 % at 10 cells, but 6.4 % off at
 # 4 and 24 % at 2), better than the 5-15 % of a manual survey; a coarser grid samples the pile to a
@@ -130,6 +132,9 @@ def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surfa
     where = f"{scene_path}: 'stockpile.surface_file' {file}"
     if file.suffix == ".npz":
         xs, ys, zs = _read_npz(file, where)
+        if STACKED_KEY in _npz_keys(file) and not math.isclose(xs[1] - xs[0], spacing, rel_tol=1e-9):
+            raise SceneError(f"{where}: a stacked pile is reclaimed on the grid it was stacked on, its layers "
+                             f"cell by cell: 'stockpile.grid_spacing' must be its {xs[1] - xs[0]:g} m, got {spacing:g} m")
     elif file.suffix == ".csv":
         xs, ys, zs = _read_points(file, where)
     else:
@@ -169,13 +174,27 @@ def _pile_extent(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, where: str) -> 
     return float(np.ptp(xs[corners])), float(np.ptp(ys[corners]))
 
 
+def is_stacked_pile(file: Path | None) -> bool:
+    """Whether `file` is a stacking run's pile.npz, its layers of grade in it (docs/blending.md)."""
+    return file is not None and Path(file).suffix == ".npz" and STACKED_KEY in _npz_keys(Path(file))
+
+
+def _npz_keys(file: Path) -> frozenset[str]:
+    try:
+        with np.load(file, allow_pickle=False) as data:
+            return frozenset(data.files)
+    except (OSError, ValueError):
+        return frozenset()
+
+
 def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     try:
         with np.load(file, allow_pickle=False) as data:
-            missing = [key for key in ("x", "y", "z") if key not in data]
+            heights = "z_end" if STACKED_KEY in data and "z" not in data else "z"  # a stacked pile as it ended
+            missing = [key for key in ("x", "y", heights) if key not in data]
             if missing:
                 raise SceneError(f"{where}: has no array '{missing[0]}' (x, y: grid lines in m; z: heights in m)")
-            x, y, z = (np.asarray(data[key], dtype=float) for key in ("x", "y", "z"))
+            x, y, z = (np.asarray(data[key], dtype=float) for key in ("x", "y", heights))
     except (OSError, ValueError) as exc:
         raise SceneError(f"{where}: not a readable .npz file ({exc})") from None
     if x.ndim != 1 or y.ndim != 1 or z.shape != (len(y), len(x)) or len(x) < 2 or len(y) < 2:
