@@ -153,13 +153,16 @@ def test_the_replay_shows_the_pile_growing_from_the_bare_yard():
     np.testing.assert_allclose(end, result.stacking.z, atol=1e-5)  # float32 frames
 
 
-RECLAIM_STACKED = '''extends = "heavy_bench_reclaim"
+# heavy_stack_and_reclaim on the small pile: one 4 m bench of 10 m.
+RECLAIM_STACKED = '''extends = "heavy_stack_and_reclaim"
 [stockpile]
 surface_file = "stack/pile.npz"
 grid_spacing = 0.5
 [reclaim]
 bench_height = 4.0
+bench_length = 10.0
 start = [-100.0, 15.0, 5.0]
+stop = { benches = 1 }
 '''
 
 

@@ -922,7 +922,10 @@ def _check_stockpile(scene: Scene) -> None:
     if (pile.windrow is None) == (pile.surface_file is None):
         raise SceneError(f"{p}: [stockpile] needs either a [stockpile.windrow] or a 'stockpile.surface_file', not both")
     if pile.surface_file is not None and not pile.surface_file.is_file():
-        raise SceneError(f"{p}: 'stockpile.surface_file' names a file that does not exist: {pile.surface_file}")
+        made_by_a_run = " (a run directory's pile: run the scene that stacks it first)" \
+            if pile.surface_file.name == "pile.npz" else ""
+        raise SceneError(f"{p}: 'stockpile.surface_file' names a file that does not exist: "
+                         f"{pile.surface_file}{made_by_a_run}")
     if pile.windrow is not None:
         w = pile.windrow
         for key in ("length", "height"):

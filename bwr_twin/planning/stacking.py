@@ -9,7 +9,7 @@ crest stands at H sqrt(k / N): pass k keeps the discharge point `drop` above tha
 stackers luff to hold their drop height, against dust and segregation), or as low as the boom
 luffs where that is higher (the first layers of a low pile), and between passes the
 machine stands at the pile's end while the boom luffs up, each joint a rest-to-rest cubic at most
-at its rated speed. A pass runs a trapezoid in travel: `acceleration` up to a cruise speed, the
+at its rated speed and the discharge point at most at the travel's `acceleration`. A pass runs a trapezoid in travel: `acceleration` up to a cruise speed, the
 speed, then down; its slew and luff hold, the axis lying along the rail. The cruise speed is the
 one at which the N passes and the turns between them take exactly the time the tonnes take at
 the rate, so the stream never stops: the ends, where the machine turns, get the turns' share (the
@@ -25,7 +25,7 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import EnvelopeError, SceneError, UnreachableError
-from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.model.machine import Machine, describe
 from bwr_twin.planning.follower import Stage
 from bwr_twin.planning.trajectory import Trajectory, rest_to_rest
 from bwr_twin.stockpile.surface import YARD_FLOOR
@@ -82,7 +82,7 @@ def plan_stacking(scene: Scene, machine: Machine, period: float) -> StackingPlan
         start, end = (ends if layer % 2 == 0 else ends[::-1])
         knots.append([_ik(machine, p, (x, s.axis_y, head), f"pass {layer + 1}'s {which}")
                       for x, which in ((start, "start"), (end, "end"))])
-    turns = [_turn_time(machine, knots[i][1], knots[i + 1][0]) for i in range(s.layers - 1)]
+    turns = [_turn_time(machine, knots[i][1], knots[i + 1][0], s.acceleration) for i in range(s.layers - 1)]
     total = s.tonnes / s.rate * SECONDS_PER_HOUR
     duration = (total - sum(turns)) / s.layers  # s of each pass
     speed, ramp = _cruise(p, length, s.acceleration, duration, machine, s)
@@ -147,10 +147,13 @@ def _ik(machine: Machine, scene_path, point: tuple[float, float, float], label: 
         raise type(exc)(f"{scene_path}: {exc}") from None
 
 
-def _turn_time(machine: Machine, start: np.ndarray, end: np.ndarray) -> float:
+def _turn_time(machine: Machine, start: np.ndarray, end: np.ndarray, acceleration: float) -> float:
     """s of a rest-to-rest cubic from `start` to `end` whose top speed (1.5 x delta / span) is
-    each joint's rated speed at most."""
-    return float(max(1.5 * abs(end[j] - start[j]) / machine.rated_speed[j] for j in range(len(AXES))))
+    each joint's rated speed at most, and whose top acceleration (6 x delta / span^2) moves the
+    discharge point at `acceleration` (m/s^2) at most: a rotation's over the boom's length."""
+    levers = np.array([1.0, machine.geometry.boom_length, machine.geometry.boom_length])  # m a unit of each moves the CP
+    delta = np.abs(end - start)
+    return float(max(np.max(1.5 * delta / machine.rated_speed), np.max(np.sqrt(6.0 * delta * levers / acceleration))))
 
 
 def _cruise(scene_path, length: float, acceleration: float, duration: float, machine: Machine,
