@@ -200,7 +200,8 @@ def test_the_grade_that_left_is_the_stacked_grade_blended(reclaimed, stacked):
 
 def test_the_run_directory_keeps_the_grade_out_after_the_belt_delay(reclaimed, tmp_path):
     result, _ = reclaimed
-    write_run(result, tmp_path / "run", plots=False)
+    write_run(result, tmp_path / "run")
+    assert (tmp_path / "run" / "blend.png").stat().st_size > 10_000
     columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
     grade = columns["grade_out_Fe %"]
     first = result.reclaim.grade_out["t"][0]

@@ -19,7 +19,7 @@ from bwr_twin.model.machine import AXES, UNITS, Machine, world_to_paper
 from bwr_twin.results.layout import DPI, fit_titles
 from bwr_twin.results.reclaim_plots import reclaim_figures
 from bwr_twin.results.scan_plots import scan_figure
-from bwr_twin.results.stacking_plots import stacking_figure
+from bwr_twin.results.stacking_plots import blend_figure, stacking_figure
 from bwr_twin.shipped import MJCF
 from bwr_twin.sim.record import RunResult
 
@@ -82,6 +82,8 @@ def run_figures(result: RunResult) -> Iterator[tuple[str, Figure]]:
         yield "survey.png", scan_figure(result, subtitle)
     if result.stacking is not None:
         yield "stacking.png", stacking_figure(result, subtitle)
+    if result.reclaim is not None and result.reclaim.grade_out is not None:
+        yield "blend.png", blend_figure(result, subtitle)
     fuzzy_output = result.controller_signals.get("fuzzy_output")
     if fuzzy_output is not None:  # a controller with fuzzy logic
         fuzzy_title = titled("Fuzzy logic output signals", "9")

@@ -1,6 +1,6 @@
 """stacking.png: the pile a run stacked and the grade through it (docs/blending.md): its heights
 from above, its layers cut across and along the axis, coloured by grade, and the grade that came
-in against time."""
+in against time. blend.png: the grade a reclaim took from a stacked pile."""
 
 from __future__ import annotations
 
@@ -81,3 +81,34 @@ def _section(ax: Axes, thickness: np.ndarray, grade: np.ndarray, count: np.ndarr
     edges = np.concatenate([lines - spacing / 2, [lines[-1] + spacing / 2]])
     heights = np.concatenate([levels, [levels[-1] + SECTION_STEP]])
     return ax.pcolormesh(edges, heights, np.ma.masked_invalid(image), shading="flat", **limits)
+
+
+def blend_figure(result: RunResult, subtitle: str) -> Figure:
+    """blend.png: the grade that left a stacked pile, bucket by bucket after the belt's delay,
+    against what was stacked into it and the band."""
+    out, blend = result.reclaim.grade_out, result.metrics["blend"]
+    name = out["name"]
+    fig = Figure(figsize=(12, 5), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(out["t"], out["grade"], ".", ms=2, color="C0", label="grade out, each bucket")
+    buckets = max(round(result.machine.wheel.discharges_per_minute), 1)  # a minute's discharges
+    window = np.ones(buckets)
+    minute = (np.convolve(out["grade"] * out["tonnes"], window, "same")
+              / np.maximum(np.convolve(out["tonnes"], window, "same"), 1e-12))
+    ax.plot(out["t"], minute, "-", lw=1.0, color="C1", label=f"the same, tonne-weighted over {buckets} buckets (a minute)")
+    for value, style, label in ((blend["grade_in_mean"], "k--", "stacked, mean"),
+                                (blend["grade_in_mean"] - blend["grade_in_sd"], "k:", "stacked, mean ± sd"),
+                                (blend["grade_in_mean"] + blend["grade_in_sd"], "k:", None)):
+        ax.axhline(value, color=style[0], ls=style[1:], lw=0.8, label=label)
+    if blend["band"] is not None:
+        ax.axhspan(*blend["band"], color="C2", alpha=0.12, label=f"band {blend['band'][0]:g}-{blend['band'][1]:g} {name}")
+    ax.set_xlabel(f"time [s], at the belt scale ({blend['belt_delay_s']:.1f} s after the discharge)")
+    ax.set_ylabel(name)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", ncols=2)
+    ax.set_title(f"{blend['tonnes_out_t']:,.0f} t out at {blend['grade_out_mean']:.3f} ± {blend['grade_out_sd']:.3f} "
+                 f"{name}, stacked at {blend['grade_in_mean']:.3f} ± {blend['grade_in_sd']:.3f} in {blend['layers']} "
+                 f"layers: sd ratio {blend['sd_ratio']:.3f} (1/sqrt(N) {blend['sqrt_n_ratio']:.3f})")
+    fig.suptitle(f"The blend reclaimed from the stacked pile\n{subtitle}")
+    fit_titles(fig)
+    return fig
