@@ -163,7 +163,8 @@ def _cruise(scene_path, length: float, acceleration: float, duration: float, mac
     cruises faster than the travel's rated speed."""
     need = 2.0 * math.sqrt(length / acceleration)  # the fastest: up and straight down again
     if not duration >= need:
-        raise SceneError(f"{scene_path}: [stacking] leaves each of its {section.layers} passes {duration:.1f} s "
+        passes = f"{section.layers} pass{'es' if section.layers != 1 else ''}"
+        raise SceneError(f"{scene_path}: [stacking] leaves each of its {passes} {duration:.1f} s "
                          f"({section.tonnes:g} t at {section.rate:g} t/h), less than the {need:.1f} s a "
                          f"{length:g} m pass takes at {acceleration:g} m/s^2: fewer layers or a shorter axis")
     # duration = length / v + v / a: the smaller root, the one that cruises

@@ -5,8 +5,8 @@
 The per-period hot spots are compiled with numba on first use (some 10 s on this 2-core
 machine) and cached on disk. `make setup` runs this: a second of each kind of shipped scene (the
 fuzzy controller on the paper's path, a PID digging a pile, two machines under an interlock that
-quick-stops them, a bench reclaim under its rate loop) calls every kernel once, and every later
-run, the replay's included, starts compiled.
+quick-stops them, a bench reclaim under its rate loop, a stacker laying a pile) calls every
+kernel once, and every later run, the replay's included, starts compiled.
 """
 
 from __future__ import annotations
@@ -32,7 +32,10 @@ def main() -> None:
                             ("heavy_two_machines_interlocked", {**_first_second("heavy_two_machines_interlocked"),
                                                                 "faults": [{"kind": "encoder_dropout", "axis": "travel",
                                                                             "start": 0.5}]}),
-                            ("heavy_bench_reclaim", {"reclaim.stop": {"time": 1.0}})):
+                            ("heavy_bench_reclaim", {"reclaim.stop": {"time": 1.0}}),
+                            # a stacker laying 200 t on a 20 m axis: deposits, relaxation, layers
+                            ("heavy_chevron_stack", {"stacking.tonnes": 200.0, "stacking.layers": 1,
+                                                     "stacking.axis_x": [-10.0, 10.0]})):
         simulate(load_scene(find_scene(name), overrides))
     print(f"compiled the loop's kernels in {time.perf_counter() - started:.1f} s (cached for every later run)")
 
