@@ -29,7 +29,7 @@ from bwr_twin.stockpile.surface import Surface, is_stacked_pile
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 
-def _lot_sd(tonnes: np.ndarray, grade: np.ndarray, size: int) -> float:
+def lot_sd(tonnes: np.ndarray, grade: np.ndarray, size: int) -> float:
     """The tonne-weighted spread of the grades of lots of `size` discharges in a row (a minute's,
     as a sampler cuts lots), each lot's grade its tonne-weighted mean; NaN for fewer than two lots."""
     lots = len(tonnes) // size
@@ -160,7 +160,7 @@ class Reclaim:
             "grade_in_sd": stacked.grade_in_sd,
             "grade_out_mean": mean,
             "grade_out_sd": sd,
-            "grade_out_sd_minute": _lot_sd(tonnes, grade, max(round(self.wheel.discharges_per_minute), 1)),
+            "grade_out_sd_minute": lot_sd(tonnes, grade, max(round(self.wheel.discharges_per_minute), 1)),
             "sd_ratio": sd / stacked.grade_in_sd if stacked.grade_in_sd > 0 else float("nan"),
             "sqrt_n_ratio": 1.0 / math.sqrt(stacked.layers),
             "variance_reduction": (stacked.grade_in_sd / sd) ** 2 if sd > 0 else float("inf"),
