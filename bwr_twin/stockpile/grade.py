@@ -18,6 +18,16 @@ from bwr_twin.values import reads_as_number
 _BLOCK = 4096  # AR(1) values drawn at a time: the values never depend on how they were asked for
 
 
+def tonne_weighted(tonnes: np.ndarray, grade: np.ndarray) -> tuple[float, float]:
+    """The mean and the standard deviation of `grade`, each value weighted by its `tonnes`; NaN
+    for no tonnes."""
+    total = float(np.sum(tonnes))
+    if not total > 0:
+        return float("nan"), float("nan")
+    mean = float(np.sum(tonnes * grade) / total)
+    return mean, float(np.sqrt(np.sum(tonnes * (grade - mean) ** 2) / total))
+
+
 class Ar1Grade:
     """A stationary AR(1) grade, one value a `period` s, held over it:
     g[k] = mean + phi (g[k-1] - mean) + sd sqrt(1 - phi^2) e[k], phi = exp(-period / correlation_time),

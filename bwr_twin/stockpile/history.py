@@ -55,3 +55,26 @@ class PileHistory:
         """The history as pile.npz keeps it, beside x, y, z_start and z_end."""
         return {"frame_time": self.frame_time, "frame_offsets": self.offsets, "frame_cells": self.cells,
                 "frame_heights": self.heights}
+
+
+class PileFrames:
+    """Every run's frames while its pile changes (a reclaim's cut, a stacking's deposits): the
+    cells changed since the last frame, with their heights."""
+
+    def __init__(self, start: np.ndarray):
+        """`start`: (runs, ny, nx) the piles' heights as they begin."""
+        self._framed = np.array(start, dtype=float)
+        self._frames: list[list] = [[] for _ in range(len(self._framed))]
+
+    def keep(self, time: float, heights) -> None:
+        """A frame at `time` (s) of each run's (ny, nx) heights, `heights[run]`."""
+        for run, framed in enumerate(self._framed):
+            z = np.asarray(heights[run])
+            changed = np.flatnonzero(z != framed)
+            if changed.size:
+                values = z.ravel()[changed]
+                framed.ravel()[changed] = values
+                self._frames[run].append((time, changed.astype(np.int32), values.astype(np.float32)))
+
+    def history(self, run: int, x: np.ndarray, y: np.ndarray, z_start: np.ndarray) -> PileHistory:
+        return PileHistory.from_frames(x, y, z_start, self._frames[run])

@@ -21,7 +21,8 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.stockpile.conveyor import Conveyor
 from bwr_twin.stockpile.cutting import Cut, Cutter
 from bwr_twin.stockpile.digging import DiggingLoad
-from bwr_twin.stockpile.history import PileHistory
+from bwr_twin.stockpile.grade import tonne_weighted
+from bwr_twin.stockpile.history import PileFrames
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.stacked import read_stacked
@@ -37,8 +38,7 @@ def lot_sd(tonnes: np.ndarray, grade: np.ndarray, size: int) -> float:
         return float("nan")
     mass = tonnes[:lots * size].reshape(lots, size).sum(axis=1)
     means = (tonnes * grade)[:lots * size].reshape(lots, size).sum(axis=1) / mass
-    mean = np.sum(mass * means) / mass.sum()
-    return float(np.sqrt(np.sum(mass * (means - mean) ** 2) / mass.sum()))
+    return tonne_weighted(mass, means)[1]
 
 
 def _longest_outside(t: np.ndarray, grade: np.ndarray, band: tuple[float, float] | None, interval: float) -> float | None:
@@ -92,8 +92,7 @@ class Reclaim:
         self.cut: Cut | None = None
         self.cp = np.zeros((runs, 3))
         self._frame_every = frame_every
-        self._frames: list[list] = [[] for _ in range(runs)]
-        self._framed = self.cutter.heights.copy() if frame_every else None
+        self._frames = PileFrames(self.cutter.heights) if frame_every else None
 
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray | None:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
@@ -104,8 +103,8 @@ class Reclaim:
         self.conveyor.load(k, cut.volume, self._cut_layers(cut) if self.layers is not None else None)
         self.depth[:] = cut.depth
         np.maximum(self.depth_max, cut.depth, out=self.depth_max)
-        if self._framed is not None and k % self._frame_every == 0:
-            self._keep_frame(k)
+        if self._frames is not None and k % self._frame_every == 0:
+            self._frames.keep(k * self.period, self.cutter.heights)
         return self.digging.step(q, cp, cut) if self.digging is not None else None
 
     def _stack(self, scenes: Sequence[Scene]) -> None:
@@ -145,8 +144,7 @@ class Reclaim:
         density = self.density[run] / KG_PER_T  # t/m^3
         tonnes = volume * density
         out = float(tonnes.sum())
-        mean = float(np.sum(tonnes * grade) / out) if out > 0 else float("nan")
-        sd = float(np.sqrt(np.sum(tonnes * (grade - mean) ** 2) / out)) if out > 0 else float("nan")
+        mean, sd = tonne_weighted(tonnes, grade)
         start = stacked.pile
         held = self.layers[run]
         left = (held.volume() + conveyor.carried[run] + conveyor.spilled[run] + conveyor.bucket[run])
@@ -184,14 +182,6 @@ class Reclaim:
         """After the last period k: the bucket in the cut discharges (bwr_twin.stockpile.conveyor)."""
         self.conveyor.finish(k)
 
-    def _keep_frame(self, k: int) -> None:
-        for run in range(len(self._frames)):
-            changed = np.flatnonzero(self.cutter.heights[run] != self._framed[run])
-            if changed.size:
-                heights = self.cutter.heights[run].ravel()[changed]
-                self._framed[run].ravel()[changed] = heights
-                self._frames[run].append((k * self.period, changed.astype(np.int32), heights.astype(np.float32)))
-
     def metrics(self, run: int) -> dict:
         """metrics.json's `reclaim` object for `run` (output contract), but for a plan's measures."""
         return {
@@ -215,6 +205,6 @@ class Reclaim:
         """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept)."""
         return dict(
             x=self.surface.x, y=self.surface.y, z_start=self.surface.z, z_end=self.cutter.heights[run].copy(),
-            history=PileHistory.from_frames(self.surface.x, self.surface.y, self.surface.z, self._frames[run])
-            if self._framed is not None else None,
+            history=self._frames.history(run, self.surface.x, self.surface.y, self.surface.z)
+            if self._frames is not None else None,
         )

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import SceneError
+from bwr_twin.stockpile.grade import tonne_weighted
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.surface import Surface
 
@@ -60,8 +61,7 @@ def read_stacked(file: Path, surface: Surface, scene_path: Path) -> StackedPile:
     pile.count[iy:iy + ny, ix:ix + nx] = arrays["layer_count"]
     pile.z[:] = surface.z  # the columns' sums, to rounding: the cut reads one, the layers follow
     tonnes, grades = arrays["deposit_tonnes"], arrays["deposit_grade"]
-    mean = float(np.sum(tonnes * grades) / tonnes.sum())
-    sd = float(np.sqrt(np.sum(tonnes * (grades - mean) ** 2) / tonnes.sum()))
+    mean, sd = tonne_weighted(tonnes, grades)
     band = tuple(float(v) for v in arrays["grade_band"]) if "grade_band" in arrays else None
     return StackedPile(pile, float(arrays["bulk_density"]), str(arrays["grade_name"]), band, mean, sd,
                        int(arrays["layers"]))

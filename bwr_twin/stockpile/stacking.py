@@ -21,8 +21,8 @@ from bwr_twin.config.scene import GradeSection, Scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.stacking import StackingPlan
 from bwr_twin.stockpile.deposition import discharge
-from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade
-from bwr_twin.stockpile.history import PileHistory
+from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade, tonne_weighted
+from bwr_twin.stockpile.history import PileFrames, PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
 from bwr_twin.stockpile.relaxation import Talus
@@ -95,8 +95,7 @@ class Stacking:
         self.deposits: list[list[tuple[float, float, float, float, float]]] = [[] for _ in scenes]
         self.unconverged = np.zeros(len(scenes), dtype=np.int64)  # relaxations that ran out of rounds
         self._frame_every = frame_every
-        self._frames: list[list] = [[] for _ in scenes]
-        self._framed = [pile.z.copy() for pile in self.piles] if frame_every else None
+        self._frames = PileFrames([pile.z for pile in self.piles]) if frame_every else None
 
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> None:
         """Period k: a deposit if one falls due, where the true joints q (runs, 3) put the
@@ -116,23 +115,14 @@ class Stacking:
             self.unconverged[run] += not laid.relaxed.converged
             self.deposits[run].append((start, grade, laid.tonnes, x, y))
         last = start + span >= self.duration
-        if self._framed is not None and (k % self._frame_every < self.every or last):  # the last, so the replay ends on the pile
-            self._keep_frame(k)
-
-    def _keep_frame(self, k: int) -> None:
-        for run, pile in enumerate(self.piles):
-            framed = self._framed[run]
-            changed = np.flatnonzero(pile.z != framed)
-            if changed.size:
-                heights = pile.z.ravel()[changed]
-                framed.ravel()[changed] = heights
-                self._frames[run].append((k * self.period, changed.astype(np.int32), heights.astype(np.float32)))
+        if self._frames is not None and (k % self._frame_every < self.every or last):  # the last, so the replay ends on the pile
+            self._frames.keep(start, [pile.z for pile in self.piles])
 
     def record(self, run: int) -> StackingRecord:
         pile = self.piles[run]
         t, grade, tonnes, x, y = self._deposits(run)
-        history = (PileHistory.from_frames(pile.x, pile.y, np.zeros_like(pile.z), self._frames[run])
-                   if self._framed is not None else None)
+        history = (self._frames.history(run, pile.x, pile.y, np.zeros_like(pile.z))
+                   if self._frames is not None else None)
         section = self.section
         return StackingRecord(t, grade, tonnes, np.column_stack([x, y]), pile.x, pile.y, pile.z.copy(),
                               pile.thickness.copy(), pile.grade.copy(), pile.count.copy(), section.grade.name,
@@ -152,8 +142,7 @@ class Stacking:
         grade_tonnes_in = float(np.sum(tonnes * grade))
         held = material.tonnes(pile.volume())
         grade_held = material.tonnes(pile.grade_volume())
-        mean_in = grade_tonnes_in / tonnes_in if tonnes_in > 0 else float("nan")
-        sd_in = float(np.sqrt(np.sum(tonnes * (grade - mean_in) ** 2) / tonnes_in)) if tonnes_in else 0.0
+        mean_in, sd_in = tonne_weighted(tonnes, grade)
         return {
             "pattern": self.section.pattern,
             "layers": self.section.layers,
