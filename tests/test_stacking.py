@@ -186,6 +186,16 @@ def test_a_stacked_pile_reclaimed_balances_its_tonnes_and_grade_exactly(reclaime
     assert blend["tonnes_out_t"] > 300.0
 
 
+def test_the_faces_cut_into_a_stacked_pile_slump_with_their_layers(reclaimed):
+    """heavy_stack_and_reclaim's 'stockpile.angle_of_repose': the cut faces slump, their layers
+    carried along (the balances above hold with them), and no slope stands steeper at the end."""
+    result, _ = reclaimed
+    pile = result.reclaim
+    talus = Talus.of(pile.x[1] - pile.x[0], 37.0)
+    assert result.metrics["reclaim"]["slumped_m3"] > 10.0
+    assert talus.excess(pile.z_end) <= talus.tolerance
+
+
 def test_the_grade_that_left_is_the_stacked_grade_blended(reclaimed, stacked):
     """Each bucket carries a mix of the layers it cut through: the grade out lies within what was
     stacked, and varies less than what came in."""

@@ -20,6 +20,7 @@ from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.digging import jacobian_transpose
 from bwr_twin.stockpile.placement import check_placement
+from bwr_twin.stockpile.relaxation import Talus
 from bwr_twin.stockpile.surface import Surface, build_surface
 
 # heavy_dig_pile's cut, shortened: from beside the windrow's flank at slew 30 deg into it at
@@ -52,6 +53,26 @@ def test_the_pile_loses_exactly_what_the_buckets_carry_and_spill(short_dig):
     period = short_dig.scene.simulation.record_period
     assert reclaim["rate_mean_tph"] * reclaim["carrying_time_s"] / 3600 == pytest.approx(reclaim["conveyed_t"], rel=1e-9)
     assert np.sum(pile.rate) * period / 3600 == pytest.approx(reclaim["conveyed_t"], rel=0.02)  # recorded every 10th period
+
+
+def test_the_faces_a_cut_leaves_slump_to_the_angle_of_repose_and_the_pile_still_loses_what_was_dug(short_dig):
+    """With a `stockpile.angle_of_repose` the faces the wheel cuts slump after each cut, the
+    volume kept: the pile ends with no slope steeper than the angle (the windrow starts at it),
+    and loses exactly what the buckets took. Without it the cut face stands steeper."""
+    slumping = simulate(load_scene(SCENES / "heavy_dig_pile.toml",
+                                   {**SHORT_DIG, "stockpile.angle_of_repose": 37.0}))
+    pile, reclaim = slumping.reclaim, slumping.metrics["reclaim"]
+    talus = Talus.of(pile.x[1] - pile.x[0], 37.0)
+    assert talus.excess(pile.z_start) <= talus.tolerance  # the windrow stands at its angle
+    assert talus.excess(pile.z_end) <= talus.tolerance
+    assert talus.excess(short_dig.reclaim.z_end) > 0.05  # m a cell: the 45 deg the wheel's rim leaves, unslumped
+    assert reclaim["slumped_m3"] > 10.0 and reclaim["slumps_unconverged"] == 0
+    cell_area = (pile.x[1] - pile.x[0]) ** 2
+    lost = (pile.z_start.sum() - pile.z_end.sum()) * cell_area
+    assert lost == pytest.approx(reclaim["dug_m3"], rel=1e-12, abs=0)
+    # The slumped material fell into the wheel's way and was dug: more than the face alone gave.
+    assert reclaim["dug_m3"] > short_dig.metrics["reclaim"]["dug_m3"]
+    assert "slumped_m3" not in short_dig.metrics["reclaim"]  # a pile without the angle is as before
 
 
 def _prism(height: float, x: tuple[float, float], y: tuple[float, float], spacing: float) -> Surface:
@@ -301,6 +322,8 @@ def test_a_scene_without_a_pile_digs_nothing():
 @pytest.mark.parametrize("override, message", [
     ({"stockpile.surface_file": "pile.csv"}, r"needs either a \[stockpile.windrow\] or a 'stockpile.surface_file', not both"),
     ({"stockpile.windrow.angle_of_repose": 95.0}, r"'stockpile.windrow.angle_of_repose' must lie in \(0, 90\) deg, got 95.0"),
+    ({"stockpile.angle_of_repose": 90.0}, r"'stockpile.angle_of_repose' must lie in \(0, 90\) deg, got 90.0"),
+    ({"stockpile.angle_of_repose": 0.65}, r"'stockpile.angle_of_repose' must lie in \[10, 60\] deg \(.*CEMA Table 3-1\), got 0.65"),
     ({"stockpile.grid_spacing": 0.0}, r"'stockpile.grid_spacing' must be > 0, got 0.0"),
     ({"stockpile.windrow.centre": [1.0]}, r"'stockpile.windrow.centre' must hold 2 values, got 1"),
     ({"stockpile.grid_spacing": 1e-4}, r"'stockpile.grid_spacing' gives .* height samples, more than 2e\+07"),

@@ -66,6 +66,9 @@ def check_bounds(scene) -> None:
     if pile is not None:
         _within(p, "stockpile.bulk_density", pile.bulk_density, BULK_DENSITY, "kg/m3",
                 "from wood chips to lead ore, CEMA's table of bulk materials")
+        if pile.angle_of_repose is not None:
+            _within(p, "stockpile.angle_of_repose", pile.angle_of_repose, ANGLE_OF_REPOSE, "deg",
+                    "the angles at which freely formed piles of bulk solids stand, CEMA Table 3-1")
         if pile.windrow is not None:
             _within(p, "stockpile.windrow.angle_of_repose", pile.windrow.angle_of_repose, ANGLE_OF_REPOSE,
                     "deg", "the angles at which freely formed piles of bulk solids stand, CEMA Table 3-1")

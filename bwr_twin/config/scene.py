@@ -158,6 +158,8 @@ class StockpileSection:
     grid_spacing: float = 0.25  # m between height samples: a 0.8 m cut spans three
     windrow: WindrowSection | None = None
     surface_file: Path | None = None  # .npz with x, y (grid lines, m) and z (heights, m), or .csv x,y,z points
+    # deg: the faces the wheel cuts slump to it, volume kept (bwr_twin.stockpile.cutting); None: they stand
+    angle_of_repose: float | None = None
     # How the pile's hfield is drawn in the MuJoCo world (bwr_twin.model.spec), nothing else:
     colour: tuple[float, float, float, float] = (0.55, 0.27, 0.15, 1.0)  # rgba: iron ore's red-brown
     base_depth: float = 1.0  # m of the hfield's base box below the yard floor, as MuJoCo draws it
@@ -919,6 +921,8 @@ def _check_stockpile(scene: Scene) -> None:
             raise SceneError(f"{p}: 'stockpile.{key}' must be > 0, got {getattr(pile, key)}")
     if not all(0 <= c <= 1 for c in pile.colour):
         raise SceneError(f"{p}: 'stockpile.colour' (rgba) must lie in [0, 1], got {list(pile.colour)}")
+    if pile.angle_of_repose is not None and not 0 < pile.angle_of_repose < 90:
+        raise SceneError(f"{p}: 'stockpile.angle_of_repose' must lie in (0, 90) deg, got {pile.angle_of_repose}")
     if (pile.windrow is None) == (pile.surface_file is None):
         raise SceneError(f"{p}: [stockpile] needs either a [stockpile.windrow] or a 'stockpile.surface_file', not both")
     if pile.surface_file is not None and not pile.surface_file.is_file():

@@ -93,7 +93,8 @@ def plan_after_survey(scene: Scene, machine: Machine, heights: np.ndarray) -> Be
     known = Surface(surface.x, surface.y, np.where(np.isnan(heights), YARD_FLOOR, heights))
     where = f"{scene.path}: [reclaim] on the pile scanned by the survey"
     planner = _Planner(scene.reclaim, machine, known, scene.stockpile.bulk_density,
-                       scene.simulation.control_period, where, survey.segments[-1].end, survey.nominal_duration)
+                       scene.simulation.control_period, where, survey.segments[-1].end, survey.nominal_duration,
+                       scene.stockpile.angle_of_repose)
     return after_survey(survey, planner.plan())
 
 
@@ -111,15 +112,17 @@ def _plan(reclaim: ReclaimSection, stockpile: StockpileSection, mjcf: Path, payl
     surface = build_surface(stockpile, scene_path)
     where = f"{scene_path}: [reclaim]"
     return _Planner(reclaim, machine, surface, stockpile.bulk_density, period, where,
-                    None if start is None else np.array(start), elapsed).plan()
+                    None if start is None else np.array(start), elapsed, stockpile.angle_of_repose).plan()
 
 
 class _Planner:
     def __init__(self, settings: ReclaimSection, machine: Machine, surface: Surface | None, density: float,
-                 period: float, where: str, start: np.ndarray | None = None, elapsed: float = 0.0):
+                 period: float, where: str, start: np.ndarray | None = None, elapsed: float = 0.0,
+                 angle_of_repose: float | None = None):
         """`start` (3,): where the plan starts, if not at 'start' (a survey's end), `elapsed` s
         after the run's start (a stop after a time counts from the run's start). Without a
-        `surface` it plans moves alone."""
+        `surface` it plans moves alone. `angle_of_repose` (deg): the faces its pile's cuts leave
+        slump to it, as the run's will (None: they stand)."""
         if elapsed and settings.stop.time is not None:
             settings = replace(settings, stop=replace(settings.stop, time=settings.stop.time - elapsed))
         self.s, self.machine, self.surface, self.density, self.period = settings, machine, surface, density, period
@@ -138,7 +141,7 @@ class _Planner:
                             np.radians(settings.cap_angle), float(self.rated[1]))
         if surface is None:
             return
-        self.dig = Cutter(surface, wheel, 1)  # the planner's copy of the pile, dug as it plans
+        self.dig = Cutter(surface, wheel, 1, angle_of_repose)  # the planner's copy of the pile, dug as it plans
         self.top = float(surface.z.max())
         g = machine.geometry
         cp0 = machine.fk(self.start)
@@ -410,6 +413,7 @@ class _Planner:
         volumes = np.zeros(len(q))
         for i in range(len(q)):
             cut = self.dig.cut(cp[i : i + 1], q[i : i + 1, 1])
+            self.dig.slump(cut)
             volumes[i] = cut.volume[0]
             if volumes[i] > 0 and self.first_contact is None:
                 self.first_contact = cp[i].copy()

@@ -9,6 +9,12 @@ in one period and the rate would be a train of spikes a cell apart; with flanks 
 wide, cells are lowered a little each period, and the same material is cut, a little earlier.
 The heights only ever fall, so the volume the pile loses is exactly the sum of the volumes cut.
 
+A Cutter given the material's talus heights (a scene's `stockpile.angle_of_repose`) then lets the
+faces it cut slump (bwr_twin.stockpile.relaxation), beginning from the cells it lowered: the heights
+still only move material, so the volume the pile loses is still what was cut. The slumped
+material lands where the wheel is and is cut in the periods that follow, as a real face falls
+into the wheel.
+
 The cut runs every control period for every run, so it is compiled with numba: one call visits,
 for each run, only the cells near its wheel. Numba caches the machine code beside this module,
 or in the user's cache directory if the package is read-only (or where NUMBA_CACHE_DIR says).
@@ -23,6 +29,7 @@ import numba
 import numpy as np
 
 from bwr_twin.model.machine import Wheel
+from bwr_twin.stockpile.relaxation import Relaxed, Talus, relax
 from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 
 CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again
@@ -36,14 +43,25 @@ class Cut:
     depth: np.ndarray  # m: how far inside the wheel's circle, along the boom, the material stood
     centroid: np.ndarray  # (runs, 3) world m: the volume-weighted centre of what was cut
     side: np.ndarray  # +1 or -1: which side of the wheel's plane it was cut on (0: both, or none)
+    # (runs, 4) the rectangle of cells lowered: first and last row, first and last column (-1: none)
+    cells: np.ndarray | None = None
 
 
 class Cutter:
-    """The pile heights of every run of a lockstep, (runs, ny, nx) m, and the cut that lowers them."""
+    """The pile heights of every run of a lockstep, (runs, ny, nx) m, and the cut that lowers them.
 
-    def __init__(self, surface: Surface, wheel: Wheel, runs: int):
+    `angle_of_repose` (deg): the faces the cut leaves steeper slump to it (None: they stand);
+    `record` keeps every slump's moves, for a layered pile to follow.
+    """
+
+    def __init__(self, surface: Surface, wheel: Wheel, runs: int, angle_of_repose: float | None = None,
+                 record: bool = False):
         self.surface = surface
         self.wheel = wheel
+        self.talus = Talus.of(surface.spacing, angle_of_repose) if angle_of_repose is not None else None
+        self.record = record
+        self.slumped = np.zeros(runs)  # m^3 each run's faces moved as they slumped (some more than once)
+        self.unconverged = np.zeros(runs, dtype=np.int64)  # slumps that ran out of rounds
         self.heights = np.repeat(surface.z[None], runs, axis=0)
         self._x = np.ascontiguousarray(surface.x, dtype=float)
         self._y = np.ascontiguousarray(surface.y, dtype=float)
@@ -58,12 +76,26 @@ class Cutter:
         """Lower every run's pile to its wheel's envelope, the wheel centred at cp (runs, 3) with
         the boom at `slew` (runs,) rad; only the `runs` given (None: all)."""
         count = len(self.heights)
-        out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count))
+        out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count),
+                  np.full((count, 4), -1, dtype=np.int64))
         order = np.arange(count) if runs is None else np.asarray(runs, dtype=np.int64)
         _cut(self.heights, self._x, self._y, np.ascontiguousarray(cp, dtype=float),
              np.ascontiguousarray(slew, dtype=float), order, self._near, self._shape,
-             out.volume, out.depth, out.centroid, out.side)
+             out.volume, out.depth, out.centroid, out.side, out.cells)
         return out
+
+    def slump(self, cut: Cut) -> list[Relaxed | None]:
+        """Let the faces `cut` left slump, each run's from the cells its wheel lowered; per run, the
+        relaxation (None where nothing was cut). Nothing moves without a talus."""
+        if self.talus is None:
+            return [None] * len(self.heights)
+        return [self._slump(run, cut.cells[run]) if cut.volume[run] > 0 else None for run in range(len(self.heights))]
+
+    def _slump(self, run: int, cells: np.ndarray) -> Relaxed:
+        relaxed = relax(self.heights[run], self.talus, record=self.record, region=tuple(cells.tolist()))
+        self.slumped[run] += relaxed.moved_volume
+        self.unconverged[run] += not relaxed.converged
+        return relaxed
 
 
 # The columns of Cutter._near: the gathering's CP x and y, slew, half-width, and the slew's cos, sin.
@@ -71,8 +103,9 @@ _NEAR = 6
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid, side):
-    """Cutter.cut for the runs in `order`: lowers `heights` and writes the cut's outputs."""
+def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid, side, lowered):
+    """Cutter.cut for the runs in `order`: lowers `heights` and writes the cut's outputs, and in
+    `lowered` (runs, 4) the rectangle of the cells it lowered."""
     radius, radius2, half_width, side_slope, top, margin = shape[0], shape[1], shape[2], shape[3], shape[4], shape[5]
     x0, y0, h, cell_area, floor = shape[6], shape[7], shape[8], shape[9], shape[10]
     ny, nx = heights.shape[1], heights.shape[2]
@@ -96,6 +129,7 @@ def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid
         z = heights[run]
         weight = wx = wy = wz = wa = 0.0
         deepest = -np.inf
+        row0, row1, column0, column1 = ny, -1, nx, -1
         for iy in range(iy0, iy1 + 1):
             first, last = _columns(ys[iy] - gy, gx - x0, g_cos, g_sin, g_width, g_radius, h, nx)
             y = ys[iy]
@@ -113,6 +147,7 @@ def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid
                 if not old > new:
                     continue
                 z[iy, ix] = new
+                row0, row1, column0, column1 = min(row0, iy), max(row1, iy), min(column0, ix), max(column1, ix)
                 removed = old - new
                 weight += removed
                 wx += removed * x
@@ -124,6 +159,7 @@ def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid
         if weight == 0.0:
             continue
         volume[run] = weight * cell_area
+        lowered[run, 0], lowered[run, 1], lowered[run, 2], lowered[run, 3] = row0, row1, column0, column1
         centroid[run, 0], centroid[run, 1], centroid[run, 2] = wx / weight, wy / weight, wz / (2 * weight)
         depth[run] = max(deepest, 0.0)
         side[run] = np.sign(wa)

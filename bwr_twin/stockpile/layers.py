@@ -162,6 +162,12 @@ class LayeredPile:
         _replay(*self._columns(), relaxed.source, relaxed.target, relaxed.thickness)
         return relaxed
 
+    def follow(self, relaxed: Relaxed, heights: np.ndarray) -> None:
+        """Carry the layers along a relaxation recorded on another copy of the pile's heights (a
+        Cutter's slump), and take its `heights` (ny, nx) m, which it left."""
+        _replay(*self._columns(), relaxed.source, relaxed.target, relaxed.thickness)
+        self.z[...] = heights
+
     def _columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(cells, max_layers) views of thickness and grade, and the (cells,) counts."""
         cells = self.z.size

@@ -4,7 +4,9 @@ the one owner of the piles' heights), the bucket and belt (`Conveyor`), the digg
 
 On a stacked pile (bwr_twin.stockpile.stacked) each run's layers follow its heights: the cells
 the wheel lowered give up their layers from the top, and the grade of what was cut goes into the
-bucket with it; `blend_metrics` says what left the pile against what was stacked.
+bucket with it; `blend_metrics` says what left the pile against what was stacked. With a
+`stockpile.angle_of_repose`, the faces the cut leaves slump after it (bwr_twin.stockpile.cutting),
+the layers carried along with them.
 """
 
 from __future__ import annotations
@@ -69,7 +71,8 @@ class Reclaim:
         check_placement(surface, machine, scenes[0].path)
         runs = len(scenes)
         self.machine, self.wheel, self.period = machine, machine.wheel, period
-        self.cutter = Cutter(self.surface, machine.wheel, runs)
+        stacked = is_stacked_pile(scenes[0].stockpile.surface_file)
+        self.cutter = Cutter(self.surface, machine.wheel, runs, scenes[0].stockpile.angle_of_repose, record=stacked)
         self.density = np.array([s.stockpile.bulk_density for s in scenes])  # kg/m^3
         self.conveyor = Conveyor(machine.wheel, self.density, period)
         digging = [s.digging for s in scenes]
@@ -81,7 +84,7 @@ class Reclaim:
                                        self.conveyor.bucket_interval, period)
         self.stacked = None
         self.layers: list[LayeredPile] | None = None
-        if is_stacked_pile(scenes[0].stockpile.surface_file):
+        if stacked:
             self._stack(scenes)
         zeros = np.zeros(runs)
         self.rate = self.conveyor.rate
@@ -101,6 +104,11 @@ class Reclaim:
         self.cp = cp = self.machine.fk(q)
         self.cut = cut = self.cutter.cut(cp, q[:, 1], runs)
         self.conveyor.load(k, cut.volume, self._cut_layers(cut) if self.layers is not None else None)
+        slumps = self.cutter.slump(cut)
+        if self.layers is not None:
+            for run, slump in enumerate(slumps):
+                if slump is not None:
+                    self.layers[run].follow(slump, self.cutter.heights[run])
         self.depth[:] = cut.depth
         np.maximum(self.depth_max, cut.depth, out=self.depth_max)
         if self._frames is not None and k % self._frame_every == 0:
@@ -124,9 +132,12 @@ class Reclaim:
         cut heights, in the cells the cut lowered."""
         grade_volume = np.zeros(len(self.layers))
         for run in np.flatnonzero(cut.volume > 0):
-            layers, heights = self.layers[run], self.cutter.heights[run].reshape(-1)
-            cells = np.flatnonzero(layers.z.reshape(-1) > heights)
-            _, grade_volume[run] = layers.cut_cells(cells, heights[cells])
+            layers, heights = self.layers[run], self.cutter.heights[run]
+            row0, row1, column0, column1 = cut.cells[run]
+            window = (slice(row0, row1 + 1), slice(column0, column1 + 1))
+            rows, columns = np.nonzero(layers.z[window] > heights[window])
+            cells = (rows + row0) * heights.shape[1] + columns + column0
+            _, grade_volume[run] = layers.cut_cells(cells, heights.reshape(-1)[cells])
         return grade_volume
 
     @property
@@ -190,6 +201,8 @@ class Reclaim:
             "cut_depth_max_m": float(self.depth_max[run]),
             "digging_force_max_N": float(self.digging.force_max[run]) if self.digging is not None else 0.0,
             "wheel_capacity_tph": self.wheel.capacity * self.density[run] * SECONDS_PER_HOUR / KG_PER_T,
+            **({"slumped_m3": float(self.cutter.slumped[run]),  # moved, some of it more than once
+                "slumps_unconverged": int(self.cutter.unconverged[run])} if self.cutter.talus is not None else {}),
         }
 
     def grade_out(self, run: int) -> dict | None:

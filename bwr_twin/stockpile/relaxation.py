@@ -26,7 +26,7 @@ tolerance in m, DEFAULT_TOLERANCE unless asked: a slope within tolerance / h of 
 It gets there: a cell's move lowers sum(z^2) by more than e T_axial > tolerance x T_axial, and
 sum(z^2) cannot fall below (sum z)^2 / cells. That bound is loose; the practical one is
 `max_rounds`: a round visits, in a fixed order, every cell a move touched (or neighboured) in the
-round before, starting from all cells, so a quiet pile costs one pass and an avalanche its own
+round before, starting from all cells (or those a caller says changed, and their neighbours), so a quiet pile costs one pass and an avalanche its own
 cells; a relaxation that runs out of rounds says so (Relaxed.converged). The excess decays
 geometrically, so a tenfold tighter tolerance costs a few hundred rounds more on a slumping face.
 The result is the same for the same heights: nothing is random and the order is fixed.
@@ -92,16 +92,24 @@ class Relaxed:
     thickness: np.ndarray | None = None
 
 
-def relax(z: np.ndarray, talus: Talus, max_rounds: int = DEFAULT_MAX_ROUNDS, record: bool = False) -> Relaxed:
+def relax(z: np.ndarray, talus: Talus, max_rounds: int = DEFAULT_MAX_ROUNDS, record: bool = False,
+          region: tuple[int, int, int, int] | None = None) -> Relaxed:
     """Relax heights z (ny, nx) m, in place, on the grid `talus` was made for, until no neighbour
     pair stands more than talus.tolerance above its talus height, or `max_rounds` rounds have run.
-    `record` keeps every move, in order, for a layered pile to replay (LayeredPile.relax)."""
+    `record` keeps every move, in order, for a layered pile to replay (LayeredPile.relax).
+    `region` (first row, last row, first column, last column): the only cells that changed since
+    the pile was last relaxed; the first round then visits them and their neighbours alone (a
+    wheel's cut: a few hundred of the grid's cells), and an avalanche spreads from there."""
     if z.ndim != 2 or z.dtype != np.float64 or not z.flags.c_contiguous:
         raise ValueError(f"heights must be a C-contiguous (ny, nx) float64 array, got {z.dtype} {z.shape}")
     if max_rounds < 1:
         raise ValueError(f"max_rounds must be >= 1, got {max_rounds}")
+    ny, nx = z.shape
+    first_row, last_row, first_column, last_column = (0, ny - 1, 0, nx - 1) if region is None else region
+    start = np.array([max(first_row - 1, 0), min(last_row + 1, ny - 1), max(first_column - 1, 0),
+                      min(last_column + 1, nx - 1)], dtype=np.int64)  # a changed cell's neighbours may now be too steep
     rounds, converged, count, moved, source, target, thickness = _relax(
-        z, talus.axial, talus.diagonal, talus.tolerance, max_rounds, record)
+        z, talus.axial, talus.diagonal, talus.tolerance, max_rounds, record, start)
     kept = (source[:count], target[:count], thickness[:count]) if record else (None, None, None)
     return Relaxed(rounds, converged, count, moved * talus.spacing**2, *kept)
 
@@ -112,17 +120,22 @@ _DX = np.array([1, -1, 0, 0, 1, -1, -1, 1])
 
 
 @numba.njit(cache=True)
-def _relax(z, talus_axial, talus_diagonal, tolerance, max_rounds, record):
-    """relax's loop: returns (rounds run, whether the last found nothing to move, moves, total
-    thickness moved m, and the recorded sources, targets and thicknesses)."""
+def _relax(z, talus_axial, talus_diagonal, tolerance, max_rounds, record, start):
+    """relax's loop, its first round over the cells of the `start` rectangle (first and last row,
+    first and last column): returns (rounds run, whether the last found nothing to move, moves,
+    total thickness moved m, and the recorded sources, targets and thicknesses)."""
     ny, nx = z.shape
     cells = ny * nx
     flat = z.ravel()
-    current = np.arange(cells)
+    current = np.empty(cells, np.int64)
+    size = 0
+    for iy in range(start[0], start[1] + 1):
+        for ix in range(start[2], start[3] + 1):
+            current[size] = iy * nx + ix
+            size += 1
     following = np.empty(cells, np.int64)
     queued = np.zeros(cells, np.bool_)
     excesses = np.empty(8)
-    size = cells
     capacity = 0
     source = np.empty(0, np.int64)
     target = np.empty(0, np.int64)
