@@ -5,6 +5,8 @@ repose, the layers hold the grade each deposit came at, and the run's files keep
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -231,3 +233,20 @@ def test_a_stacked_pile_on_another_grid_or_density_is_refused(reclaimed, old, ne
     (folder / "bad.toml").write_text(RECLAIM_STACKED.replace(old, new))
     with pytest.raises(SceneError, match=message):
         simulate(load_scene(folder / "bad.toml"))
+
+
+def test_a_stacked_pile_is_named_on_the_command_line_from_any_folder(reclaimed, tmp_path):
+    """`--pile` gives a reclaim its pile from the cwd, whatever the scene's own path says (a shipped
+    scene's relative path points inside the installed package); it replaces a windrow too."""
+    _, folder = reclaimed
+    scene = tmp_path / "short.toml"
+    scene.write_text(RECLAIM_STACKED.replace('surface_file = "stack/pile.npz"', 'surface_file = "elsewhere/pile.npz"')
+                     .replace("stop = { benches = 1 }", "stop = { time = 20.0 }"))
+    pile = (folder / "stack" / "pile.npz").relative_to(folder)
+    run = subprocess.run([sys.executable, "-m", "bwr_twin.run", str(scene), "--pile", str(pile), "--out", str(tmp_path / "run"),
+                          "--no-plots"], capture_output=True, text=True, cwd=folder, timeout=300, check=False)
+    assert run.returncode == 0, run.stderr
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["blend"]["layers"] == 4  # the small stacked pile's
+    windrow = load_scene(SCENES / "heavy_bench_reclaim.toml", {"stockpile.surface_file": str(folder / pile)})
+    assert windrow.stockpile.windrow is None and windrow.stockpile.surface_file == folder / pile

@@ -398,6 +398,7 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
             alone, dropping the base's where this file has none.
         overrides: dotted keys to replace before validation, e.g. {"simulation.seed": 3,
             "machine.mjcf": "/abs/heavy.xml"}; relative paths in them are relative to the cwd.
+            One of ALTERNATIVES' keys replaces the others, as in a file that extends.
     """
     path = Path(path)
     raw = copy.deepcopy(_read_raw_once(path, version(path)))
@@ -407,6 +408,7 @@ def load_scene(path: str | Path, overrides: dict[str, Any] | None = None) -> Sce
         elif key in CLASS_KEYS:
             value = _resolve_class_reference(value, Path.cwd())
         _set_dotted(raw, key, value, path)
+        _drop_alternatives(raw, key)
     scene = _build(Scene, {"path": str(path), **_rename_tables(raw)}, path, "")
     _check_rules(scene)
     return scene
@@ -474,6 +476,16 @@ ALTERNATIVES = {
     "stockpile": ("windrow", "surface_file"),
     "reclaim.stop": ("benches", "tonnes", "time"),
 }
+
+
+def _drop_alternatives(raw: dict, dotted: str) -> None:
+    """An override of one of ALTERNATIVES' keys replaces the others, as an extending file's does."""
+    parent, _, name = dotted.rpartition(".")
+    table = _table(raw, parent)
+    if table is not None and name in ALTERNATIVES.get(parent, ()):
+        for other in ALTERNATIVES[parent]:
+            if other != name:
+                table.pop(other, None)
 
 
 def _table(raw: dict, dotted: str) -> dict | None:
@@ -926,7 +938,7 @@ def _check_stockpile(scene: Scene) -> None:
     if (pile.windrow is None) == (pile.surface_file is None):
         raise SceneError(f"{p}: [stockpile] needs either a [stockpile.windrow] or a 'stockpile.surface_file', not both")
     if pile.surface_file is not None and not pile.surface_file.is_file():
-        made_by_a_run = " (a run directory's pile: run the scene that stacks it first)" \
+        made_by_a_run = " (a run directory's pile: run the scene that stacks it first, or name its pile.npz with --pile)" \
             if pile.surface_file.name == "pile.npz" else ""
         raise SceneError(f"{p}: 'stockpile.surface_file' names a file that does not exist: "
                          f"{pile.surface_file}{made_by_a_run}")
