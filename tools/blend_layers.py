@@ -1,58 +1,129 @@
 """The blend against the number of layers, on piles the twin stacks and reclaims (docs/blending.md):
-heavy_chevron_stack with N layers, then heavy_stack_and_reclaim on that pile.
+heavy_chevron_stack with N layers, then heavy_stack_and_reclaim on that pile, for several seeds.
 
-    python tools/blend_layers.py [--layers 16 32 64 128] [--out out/blend_layers]
+    python tools/blend_layers.py [--layers 16 32 64 128] [--seeds 1 2 3 4] [--out out/blend_layers]
 
 The tonnes and the axis stay the scene's; the rate falls as N grows (10,000 t/h x 32 / N) so that
-the passes keep the same speed, within the travel's rating. Prints a markdown table: per N, the
-stacked grade's spread (per deposit and in a minute's lots), the reclaimed grade's (per bucket and
-in a minute's lots), their ratios and 1/sqrt(N). Every pile and reclaim is a run directory under
---out.
+the passes keep the same speed, within the travel's rating. Per N, pooled over the seeds, the
+spread of the grade, as a ratio to the stream's: in full-face slices of the stacked pile (each
+grid column across it, cut to the floor), bucket by bucket as reclaimed, and in lots of a
+minute's buckets. Each is given about the stream's own mean (the AR(1)'s `mean`: the law's
+sense, sigma over an endless pile) and, for the slices and lots, about the sample's own mean as
+metrics.json gives it, which a pile or a reclaim a few correlation lengths long underestimates.
+Prints a markdown table, writes the numbers of every run to --out's blend_layers.json and draws
+the ratios against N beside the ideal pile (bwr_twin.stockpile.blending) into blend_layers.png.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import time
 from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.results.rundir import PILE_FILE, write_run
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.lockstep import simulate
-from bwr_twin.stockpile.reclaim import lot_sd
+from bwr_twin.stockpile import blending
+from bwr_twin.stockpile.grade import tonne_weighted
+from bwr_twin.stockpile.reclaim import lots, rms_from
 
 REFERENCE_LAYERS = 32  # heavy_chevron_stack's: its rate keeps their passes within the rated travel speed
+FULL_SLICE = 0.5  # a slice holding at least this share of the fullest one's tonnes: the pile's body
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--layers", type=int, nargs="+", default=[16, 32, 64, 128])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--out", type=Path, default=Path("out/blend_layers"))
     args = parser.parse_args()
     stacking = load_scene(find_scene("heavy_chevron_stack"))
-    rows = []
+    mean = stacking.stacking.grade.mean  # the stream's own mean
+    runs, start = [], time.perf_counter()
     for layers in args.layers:
-        rate = stacking.stacking.rate * REFERENCE_LAYERS / layers
-        stacked = simulate(load_scene(find_scene("heavy_chevron_stack"),
-                                      {"stacking.layers": layers, "stacking.rate": rate}))
-        pile_dir = args.out / f"stack_{layers}"
-        write_run(stacked, pile_dir, overwrite=True, plots=False)
-        reclaimed = simulate(load_scene(find_scene("heavy_stack_and_reclaim"),
-                                        {"stockpile.surface_file": str(pile_dir / PILE_FILE)}))
-        write_run(reclaimed, args.out / f"reclaim_{layers}", overwrite=True, plots=False)
-        blend, record = reclaimed.metrics["blend"], stacked.stacking
-        per_minute = round(60.0 / stacked.scene.stacking.deposit_period)  # a minute's deposits
-        lot_in = lot_sd(record.tonnes, record.grade, per_minute)
-        rows.append((layers, rate, blend["grade_in_sd"], lot_in, blend["grade_out_sd"], blend["grade_out_sd_minute"],
-                     blend["tonnes_out_t"]))
-        print(f"N = {layers}: done", flush=True)
-    print("\n| N | rate t/h | sd in, deposits | sd in, minute lots | sd out, buckets | sd out, minute lots "
-          "| buckets / deposits | minute lots | 1/sqrt(N) | t reclaimed |")
+        for seed in args.seeds:
+            runs.append(_stack_and_reclaim(layers, seed, stacking.stacking.rate * REFERENCE_LAYERS / layers, args.out))
+            print(f"N = {layers}, seed {seed}: done, {time.perf_counter() - start:.0f} s", flush=True)
+    rows = [_pooled([run for run in runs if run["layers"] == layers], mean) for layers in args.layers]
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "blend_layers.json").write_text(json.dumps({"stream_mean": mean, "runs": runs, "rows": rows}, indent=1))
+    print(f"\n{len(args.seeds)} seeds a row; ratios to the stream's spread per deposit, about the stream's mean "
+          f"{mean:g} and (own) about the sample's own mean\n")
+    print("| N | rate t/h | sd in | slices | slices (own) | buckets | minute lots | minute lots (own) | 1/sqrt(N) "
+          "| t reclaimed a run |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    for layers, rate, sd_in, lot_in, sd_out, lot_out, tonnes in rows:
-        print(f"| {layers} | {rate:,.0f} | {sd_in:.3f} | {lot_in:.3f} | {sd_out:.3f} | {lot_out:.3f} | "
-              f"{sd_out / sd_in:.3f} | {lot_out / lot_in:.3f} | {1 / math.sqrt(layers):.3f} | {tonnes:,.0f} |")
+    for row in rows:
+        print(f"| {row['layers']} | {row['rate']:,.0f} | {row['sd_in']:.3f} | {row['slices']:.3f} | "
+              f"{row['slices_own']:.3f} | {row['buckets']:.3f} | {row['lots']:.3f} | {row['lots_own']:.3f} | "
+              f"{1 / math.sqrt(row['layers']):.3f} | {row['tonnes_out']:,.0f} |")
+    ideal = [blending.blend(layers).ratio for layers in args.layers]
+    _figure(rows, ideal, len(args.seeds)).savefig(args.out / "blend_layers.png", dpi=110)
+    print(f"\nfigure: {args.out / 'blend_layers.png'}; numbers: {args.out / 'blend_layers.json'}")
+
+
+def _stack_and_reclaim(layers: int, seed: int, rate: float, out: Path) -> dict:
+    """One pile of `layers` stacked at `rate` t/h from the stream of `seed`, then reclaimed: the
+    deposits', the pile's full-face slices' and the discharges' tonnes and grades."""
+    stacked = simulate(load_scene(find_scene("heavy_chevron_stack"), {
+        "stacking.layers": layers, "stacking.rate": rate, "simulation.seed": seed}))
+    pile_dir = out / f"stack_{layers}_seed_{seed}"
+    write_run(stacked, pile_dir, overwrite=True, plots=False)
+    reclaimed = simulate(load_scene(find_scene("heavy_stack_and_reclaim"), {
+        "stockpile.surface_file": str(pile_dir / PILE_FILE), "simulation.seed": seed}))
+    record, out_grade = stacked.stacking, reclaimed.reclaim.grade_out
+    minute = max(round(reclaimed.machine.wheel.discharges_per_minute), 1)
+    lot_tonnes, lot_grade = lots(out_grade["tonnes"], out_grade["grade"], minute)
+    slice_volume = record.thickness.sum(axis=(0, 2))  # per grid column along the axis, m x cells
+    slice_grade = (record.thickness * record.layer_grade).sum(axis=(0, 2)) / np.maximum(slice_volume, 1e-300)
+    body = slice_volume >= FULL_SLICE * slice_volume.max()
+    return {"layers": layers, "seed": seed, "rate": rate,
+            "deposits": (record.tonnes.tolist(), record.grade.tolist()),
+            "slices": (slice_volume[body].tolist(), slice_grade[body].tolist()),
+            "buckets": (out_grade["tonnes"].tolist(), out_grade["grade"].tolist()),
+            "lots": (lot_tonnes.tolist(), lot_grade.tolist())}
+
+
+def _pooled(runs: list[dict], mean: float) -> dict:
+    """One row: the spreads of the seeds' samples pooled, as ratios to the deposits' about `mean`."""
+    def joined(key):
+        return tuple(np.concatenate([np.asarray(run[key][i]) for run in runs]) for i in (0, 1))
+
+    def own(key):  # each run's spread about its own mean, the runs' variances averaged
+        return math.sqrt(np.mean([tonne_weighted(*map(np.asarray, run[key]))[1] ** 2 for run in runs]))
+
+    sd_in = rms_from(*joined("deposits"), mean)
+    return {"layers": runs[0]["layers"], "rate": runs[0]["rate"], "seeds": [run["seed"] for run in runs],
+            "sd_in": sd_in, "slices": rms_from(*joined("slices"), mean) / sd_in, "slices_own": own("slices") / sd_in,
+            "buckets": rms_from(*joined("buckets"), mean) / sd_in, "lots": rms_from(*joined("lots"), mean) / sd_in,
+            "lots_own": own("lots") / sd_in, "tonnes_out": float(np.mean([np.sum(run["buckets"][0]) for run in runs]))}
+
+
+def _figure(rows: list[dict], ideal: list[float], seeds: int) -> Figure:
+    """The ratios against N, on log axes where 1/sqrt(N) is a straight line."""
+    layers = np.array([row["layers"] for row in rows], dtype=float)
+    fig = Figure(figsize=(8.5, 6), layout="constrained")
+    ax = fig.subplots()
+    ax.loglog(layers, 1.0 / np.sqrt(layers), "k--", lw=1.0, label="1/sqrt(N), the law (Gerstel; Kohlhaas and Labahn)")
+    ax.loglog(layers, ideal, "ks", mfc="none", label="ideal chevron pile, full-face slices (bwr_twin.stockpile.blending)")
+    ax.loglog(layers, [row["slices"] for row in rows], "D-", color="C2", label="the stacked pile, full-face slices")
+    ax.loglog(layers, [row["buckets"] for row in rows], "o-", color="C0", label="bench-reclaimed: bucket by bucket")
+    ax.loglog(layers, [row["lots"] for row in rows], "^-", color="C1", label="bench-reclaimed: lots of a minute")
+    ax.loglog(layers, [row["lots_own"] for row in rows], "^:", color="C1", mfc="none",
+              label="the same lots about their own reclaim's mean")
+    ax.set_xticks(layers, [f"{n:g}" for n in layers])
+    ax.set_xlabel("N, layers stacked")
+    ax.set_ylabel("sigma_out / sigma_in, about the stream's mean unless said")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set_title(f"The blend against the number of layers: 20,000 t stacked, the first 30 m reclaimed in two benches "
+                 f"({seeds} seeds each)", fontsize=10)
+    return fig
 
 
 if __name__ == "__main__":
