@@ -297,20 +297,25 @@ class GradeSection:
 class StackingSection:
     """`[stacking]`: the machine stacks a pile instead of following a path or reclaiming one
     (docs/blending.md). It discharges `rate` t/h at its CP (a stacker's discharge point) until
-    `tonnes` are laid, on a chevron pattern: passes to and fro along the pile's axis, from
-    `axis_x[0]` to `axis_x[1]` at `axis_y` (world m), one layer a pass, the discharge point
-    `drop` m above the crest the pile's target section has reached, luffed up between passes.
-    The material falls and slumps to its angle of repose every `deposit_period` s."""
+    `tonnes` are laid, on its `pattern` along the pile's axis, from `axis_x[0]` to `axis_x[1]` at
+    `axis_y` (world m): "chevron", passes to and fro along the axis, one layer a pass; "windrow",
+    rows side by side, each layer's in the valleys of the one below; "cone_shell", cones standing
+    one against the next; "strata", horizontal layers of equal tonnes, each in rows `row_spacing`
+    apart across the pile. `layers` counts the chevron's passes, the windrow's bottom rows, the
+    cones or the strata. The discharge point is held `drop` m above the crest the pile's target
+    section has reached, luffed up between passes. The material falls and slumps to its angle
+    of repose every `deposit_period` s."""
 
     rate: float  # t/h
     tonnes: float  # t to stack
     axis_x: tuple[float, float]  # m: where the pile's axis starts and ends, along the rail
     axis_y: float  # m: the axis's distance beside the rail's
-    layers: int  # chevron passes, one layer each
+    layers: int  # chevron passes, windrow bottom rows, cones or strata (docs/blending.md)
     bulk_density: float  # kg/m^3 of the stacked (loose) material
     angle_of_repose: float  # deg
     grade: GradeSection
-    pattern: Literal["chevron"] = "chevron"
+    pattern: Literal["chevron", "windrow", "cone_shell", "strata"] = "chevron"
+    row_spacing: float = 5.0  # m between the rows of a stratum ("strata" only)
     drop: float = 2.0  # m from the discharge point down to the crest
     acceleration: float = 0.05  # m/s^2 of the travel as a pass starts and ends
     grid_spacing: float = 0.5  # m between the pile's height samples
@@ -889,7 +894,8 @@ def _check_stacking(scene: Scene) -> None:
     p, s = scene.path, scene.stacking
     if scene.stockpile is not None or scene.digging is not None:
         raise SceneError(f"{p}: [stacking] builds its own pile on the bare yard: it takes no [stockpile] or [digging]")
-    for key in ("rate", "tonnes", "bulk_density", "drop", "acceleration", "grid_spacing", "deposit_period"):
+    for key in ("rate", "tonnes", "bulk_density", "drop", "acceleration", "grid_spacing", "deposit_period",
+                "row_spacing"):
         if not getattr(s, key) > 0:
             raise SceneError(f"{p}: 'stacking.{key}' must be > 0, got {getattr(s, key)}")
     if not 0 < s.angle_of_repose < 90:

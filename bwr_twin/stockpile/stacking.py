@@ -39,7 +39,8 @@ class StackingRecord:
         point: (deposits, 2) world x, y (m) where it landed.
         x, y: the pile's grid lines (m); z: (ny, nx) heights at the end (m);
         thickness, layer_grade: (ny, nx, max_layers) its layers from the floor up; count (ny, nx).
-        grade_name: what the grade is ("Fe %"); bulk_density kg/m^3; layers the pattern's passes;
+        grade_name: what the grade is ("Fe %"); bulk_density kg/m^3; layers what the pattern's
+            `layers` counts (chevron passes, windrow bottom rows, cones, strata);
             band the grade the customer accepts, or None.
         history: the heights as they grew, frame by frame, if kept for a replay.
     """
@@ -56,7 +57,7 @@ class StackingRecord:
     count: np.ndarray
     grade_name: str
     bulk_density: float  # kg/m^3
-    layers: int  # the pattern's passes
+    layers: int  # the scene's `layers`: chevron passes, windrow bottom rows, cones or strata
     band: tuple[float, float] | None  # the grade the customer accepts, or None
     history: PileHistory | None = None  # the pile as it grew, if kept for a replay
 
