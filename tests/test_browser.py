@@ -148,6 +148,7 @@ def test_page_renders_the_machine_and_play_advances_time(browser, recording):
 
 CONTROLLERS = ("paper_shared_gain", "pid_paper", "computed_torque_paper")  # beside the individual gains
 TINTED = 0.1  # chromaticity tolerance for the solid machine seen through three translucent ones
+GRADE_REPAINTED = 0.005  # of the scene's pixels: the small stacked pile, in grade colours instead of ore
 
 
 def changed_pixels(before: bytes, after: bytes) -> float:
@@ -430,5 +431,40 @@ def test_a_bench_reclaim_names_its_bench_and_passes_in_the_page(browser, tmp_pat
             until(lambda: server.player.time == 50.0, "the seek to 50 s")
             jump.dispatch_event("click")  # click() waits ~25 s for the button to be "stable" here
             until(lambda: server.player.time == bench.plan.landmarks[0][1], "the jump to bench 1")
+        finally:
+            page.close()
+
+
+def test_a_stacking_replay_colours_its_pile_by_grade(browser):
+    """The small stacking of test_stacking, replayed at its end: "Pile colour" grade repaints the
+    pile in its top layers' grades (the scene, left of the panel, changes) and shows the legend."""
+    from test_stacking import SCENE, SMALL
+
+    from bwr_twin.config.scene import load_scene
+    from bwr_twin.sim.lockstep import simulate
+
+    stacking = Recording.from_result(simulate(load_scene(SCENE, SMALL), pile_frame_period=10.0))
+    with ReplayServer(stacking, port=0) as server:
+        server.player.seek(float(stacking.plan.time[-1]))
+        pile = server.view.sites[0].pile
+        until(lambda: pile.dug._applied == len(stacking.pile.frame_time), "the pile at its end")
+        page = browser.new_page()
+        page.set_viewport_size({"width": 960, "height": 600})  # software WebGL: a smaller page draws sooner
+        scene = {"x": 0, "y": 0, "width": 560, "height": 600}  # left of the panel
+        try:
+            page.goto(server.url)
+            triangles = sum(len(g.faces) for g in server.view.geoms) + sum(
+                len(t._ore.faces) + len(t._cut.faces) for t in pile._tiles)
+            page.wait_for_function(f"() => ({RENDERED_TRIANGLES})() >= {triangles}", timeout=WAIT_MS, polling=100)
+            screenshot_showing_machine(page, server.view.geoms, "replay_stack_ore.png")  # the page has faded in
+            before = page.screenshot(clip=scene, timeout=WAIT_MS)
+            click(page.get_by_role("combobox", name="Pile colour"))
+            click(page.get_by_role("option", name="grade"))
+            until(lambda: server.player.pile_colour == "grade", "the player colouring the pile by grade")
+            expect(page.get_by_text("Top layer's grade, Fe %")).to_be_visible(timeout=WAIT_MS)
+            deadline = time.monotonic() + WAIT_MS / 1000
+            while changed_pixels(before, after := page.screenshot(clip=scene, timeout=WAIT_MS)) < GRADE_REPAINTED:
+                assert time.monotonic() < deadline, "colouring the pile by grade changed nothing in the scene"
+            (ARTIFACTS / "replay_stack_grade.png").write_bytes(after)
         finally:
             page.close()

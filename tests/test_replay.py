@@ -3,6 +3,7 @@ by MuJoCo's own kinematics; the server binds locally, serves and frees its port;
 plays; several runs load from run directories and compare or batch folders, or are refused with
 one line; the offline export stays small. Browser checks are in test_browser.py."""
 
+import dataclasses
 import os
 import shutil
 import signal
@@ -240,6 +241,32 @@ def test_slider_labels_via_points_that_do_not_crowd_each_other():
     benches = via_point_marks(times, names, labelled={"bench 1", "end"})
     assert [m for m in benches if isinstance(m, tuple)] == [(0.0, "bench 1"), (1136.0, "end")]
     assert len(benches) == len(times)  # every via point keeps its mark
+
+
+def test_the_grade_scale_has_round_bins_over_the_grades_shown():
+    """9 bins of a round width cover the 2nd to 98th percentile of a pile's top grades; a grade
+    beyond falls in the end bin, bare ground in none; the legend names each bin and the band."""
+    from bwr_twin.replay.grade_scale import GradeScale, round_edges
+    from bwr_twin.stockpile.history import PileHistory
+
+    np.testing.assert_allclose(round_edges(60.13, 63.87, 9), np.arange(60.0, 64.01, 0.5))  # 8 bins
+    np.testing.assert_allclose(round_edges(59.95, 64.03, 9), np.arange(59.5, 64.51, 0.5))  # 10
+    np.testing.assert_allclose(round_edges(0.012, 0.031, 9), np.arange(0.01, 0.0326, 0.0025))
+    grades = np.random.default_rng(1).normal(62.0, 1.0, 10_000).astype(np.float32)
+    start = np.full((2, 3), np.nan, np.float32)
+    history = PileHistory(np.arange(3.0), np.arange(2.0), np.zeros((2, 3)), np.array([1.0]), np.array([0, len(grades)]),
+                          np.zeros(len(grades), np.int32), np.zeros(len(grades), np.float32), start, grades,
+                          "Fe %", (61.0, 63.0))
+    scale = GradeScale.of([history])
+    low, high = np.percentile(grades, (2, 98))
+    assert scale.edges[0] <= low < scale.edges[1] and scale.edges[-2] < high <= scale.edges[-1]
+    assert len(scale.colours) == len(scale.edges) - 1 == len(set(scale.colours)) and 7 <= len(scale.colours) <= 10
+    assert scale.bins(np.array([np.nan, 0.0, scale.edges[1], 1e3])).tolist() == [-1, 0, 1, len(scale.colours) - 1]
+    labels = scale.labels()
+    assert labels[0].startswith("< ") and labels[-1].startswith("≥ ") and " – " in labels[4]
+    assert "61–63 Fe %" in scale.legend_html() and "bare ground" in scale.legend_html()
+    plain = dataclasses.replace(history, grade_start=None, grades=None)
+    assert GradeScale.of([plain]) is None
 
 
 # -- recordings, readout, charts --------------------------------------------------------------

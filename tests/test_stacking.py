@@ -133,12 +133,18 @@ def test_a_stacking_the_machine_cannot_do_is_refused_naming_the_key(overrides, m
         simulate(load_scene(SCENE, {**SMALL, **overrides}))
 
 
-def test_the_replay_shows_the_pile_growing_from_the_bare_yard():
+@pytest.fixture(scope="module")
+def grown():
+    """The small pile stacked with its frames kept for a replay, every 10 s."""
+    return simulate(load_scene(SCENE, SMALL), pile_frame_period=10.0)
+
+
+def test_the_replay_shows_the_pile_growing_from_the_bare_yard(grown):
     """Kept for a replay, the pile's frames rebuild it as it grew: less at half time than at the
     end, and at the end the pile the run stacked."""
     from bwr_twin.replay import Recording
 
-    result = simulate(load_scene(SCENE, SMALL), pile_frame_period=10.0)
+    result = grown
     recording = Recording.from_result(result)
     pile = recording.pile
     assert recording.plan.activity == "stacking" and recording.plan.names[0] == "pass 1"
@@ -153,6 +159,117 @@ def test_the_replay_shows_the_pile_growing_from_the_bare_yard():
     middle, end = heights_until(360.0), heights_until(result.time[-1])
     assert 0.3 * end.sum() < middle.sum() < 0.7 * end.sum()
     np.testing.assert_allclose(end, result.stacking.z, atol=1e-5)  # float32 frames
+
+
+def top_grades_until(history, t: float) -> np.ndarray:
+    """The (ny, nx) top grades a history's frames give at time t (s)."""
+    grade = history.grade_start.copy().ravel()
+    for i in np.flatnonzero(history.frame_time <= t):
+        frame = slice(history.offsets[i], history.offsets[i + 1])
+        grade[history.cells[frame]] = history.grades[frame]
+    return grade.reshape(history.z_start.shape)
+
+
+def test_the_frames_keep_the_top_layers_grade_through_pile_npz(grown, stacked, tmp_path):
+    """Each frame keeps the grade of the layer exposed at its cells: rebuilt at the end, it is the
+    layers' top grade, NaN on bare ground; pile.npz keeps it, with the grade's name and band, and
+    a stacking written without its frames still gives its top grade at the end."""
+    from bwr_twin.stockpile.history import PileHistory
+    from bwr_twin.stockpile.layers import top_grade
+
+    record, history = grown.stacking, grown.stacking.history
+    assert np.isnan(history.grade_start).all() and len(history.grades) == len(history.cells)
+    expected = top_grade(record.layer_grade, record.count)
+    assert np.isnan(expected).any() and np.isfinite(expected).sum() > 100  # bare ground around a pile
+    end = top_grades_until(history, grown.time[-1])
+    np.testing.assert_array_equal(end, expected.astype(np.float32))
+    middle = top_grades_until(history, 360.0)
+    assert np.isfinite(middle).sum() < np.isfinite(end).sum()  # it grows
+    write_run(grown, tmp_path / "grown", plots=False)
+    read = PileHistory.read(tmp_path / "grown" / "pile.npz", float(grown.time[-1]))
+    for name in ("grade_start", "grades", "cells", "heights"):
+        np.testing.assert_array_equal(getattr(read, name), getattr(history, name))
+    assert (read.grade_name, read.grade_band) == ("Fe %", (61.0, 63.0))
+    write_run(stacked, tmp_path / "whole", plots=False)  # no frames: the pile whole at the end
+    whole = PileHistory.read(tmp_path / "whole" / "pile.npz", float(stacked.time[-1]))
+    np.testing.assert_array_equal(top_grades_until(whole, stacked.time[-1]),
+                                  top_grade(stacked.stacking.layer_grade, stacked.stacking.count).astype(np.float32))
+
+
+def test_the_replay_colours_the_pile_by_the_grade_of_its_top_layer(grown):
+    """"Pile colour" grade: every tile's faces are split over the scale's bins by the mean top
+    grade of their corners, each bin with faces a mesh in its colour, bare ground in ore, together
+    the whole tile; they follow the pile back in time; "ore" shows the ore meshes again."""
+    import html
+
+    from test_replay import until
+
+    from bwr_twin.replay import Recording, ReplayServer
+    from bwr_twin.replay.pile import ORE_COLOUR
+
+    with ReplayServer(Recording.from_result(grown), port=0) as server:
+        player, panel, pile = server.player, server.player.panel, server.view.sites[0].pile
+        scale = server.view.grade_scale
+        assert panel.pile_colour.options == ("ore", "grade") and panel.pile_colour.value == "ore"
+        assert not panel.grade_legend.visible and "Top layer's grade, Fe %" in panel.grade_legend.content
+        assert all(html.escape(label) in panel.grade_legend.content for label in scale.labels())
+
+        bins = len(scale.colours) + 1  # and bare ground
+
+        def faces_by_bin() -> np.ndarray:
+            """(tiles, bins) the faces each grade mesh draws (none, or a placeholder: one vertex, none)."""
+            return np.array([[len(tile.bins[k].faces) if k in tile.bins and len(tile.bins[k].vertices) > 1 else 0
+                              for k in range(bins)] for tile in pile._tiles])
+
+        def expected_by_bin() -> np.ndarray:
+            rows, cols = np.ix_(pile._rows, pile._cols)
+            grade = pile.dug.grade[rows, cols]
+            counts = []
+            for tile in pile._tiles:
+                corners = grade[tile.rows, tile.cols].ravel()[tile._faces]
+                mean = np.array([np.nanmean(c) if np.isfinite(c).any() else np.nan for c in corners])
+                index = scale.bins(mean)
+                counts.append([(index == k).sum() for k in range(len(scale.colours))] + [(index < 0).sum()])
+            return np.array(counts)
+
+        player.seek(float(grown.time[-1]))
+        until(lambda: pile.dug._applied == len(pile.dug.history.frame_time), "the pile at its end")
+        player.colour_pile("grade")
+        until(lambda: panel.grade_legend.visible, "the pile coloured by grade")  # shown after the tiles
+        for tile in pile._tiles:
+            assert tile.bins and all(tile.bins[k].color == [*scale.colours, ORE_COLOUR][k] for k in tile.bins)
+            assert not tile._ore.visible and not tile._cut.visible
+        end = faces_by_bin()
+        assert np.array_equal(end.sum(axis=1), [len(tile._faces) for tile in pile._tiles])  # the whole tile
+        np.testing.assert_array_equal(end, expected_by_bin())
+        assert (end[:, :-1].sum(axis=0) > 0).sum() >= 5  # the layers' grades spread over the scale
+
+        player.seek(300.0)  # back in time: less pile, and its grades then (the player's thread sends them)
+        until(lambda: pile.dug.history.frame_time[pile.dug._applied - 1] <= 300.0
+              and np.array_equal(faces_by_bin(), expected_by_bin()), "the grade meshes at 300 s")
+        assert faces_by_bin()[:, :-1].sum() < end[:, :-1].sum()
+
+        player.colour_pile("ore")
+        until(lambda: pile._tiles[0]._ore.visible and not panel.grade_legend.visible, "the ore colours again")
+        assert not pile._grade_root.visible and panel.pile_colour.value == "ore"
+
+
+def test_a_reclaim_of_a_plain_pile_keeps_no_grade(tmp_path):
+    """A windrow has no layers: its pile.npz holds the heights and their frames alone, as before,
+    and its replay has no pile colour to choose."""
+    from test_stockpile import SHORT_DIG
+
+    from bwr_twin.replay import Recording, ReplayServer
+
+    dig = simulate(load_scene(SCENES / "heavy_dig_pile.toml", SHORT_DIG), pile_frame_period=5.0)
+    write_run(dig, tmp_path / "dig", plots=False)
+    with np.load(tmp_path / "dig" / "pile.npz") as pile:
+        assert sorted(pile.files) == sorted(["x", "y", "z_start", "z_end", "frame_time", "frame_offsets",
+                                             "frame_cells", "frame_heights"])
+    recording = Recording.from_run_dir(tmp_path / "dig")
+    assert recording.pile.grade_start is None and recording.pile.grades is None
+    with ReplayServer(recording, port=0) as server:
+        assert server.view.grade_scale is None and server.player.panel.pile_colour is None
 
 
 # heavy_stack_and_reclaim on the small pile: one 4 m bench of 10 m.
@@ -175,7 +292,7 @@ def reclaimed(stacked, tmp_path_factory):
     folder = tmp_path_factory.mktemp("blend")
     write_run(stacked, folder / "stack", plots=False)
     (folder / "reclaim.toml").write_text(RECLAIM_STACKED)
-    return simulate(load_scene(folder / "reclaim.toml")), folder
+    return simulate(load_scene(folder / "reclaim.toml"), pile_frame_period=5.0), folder
 
 
 def test_a_stacked_pile_reclaimed_balances_its_tonnes_and_grade_exactly(reclaimed):
@@ -250,3 +367,28 @@ def test_a_stacked_pile_is_named_on_the_command_line_from_any_folder(reclaimed, 
     assert metrics["blend"]["layers"] == 4  # the small stacked pile's
     windrow = load_scene(SCENES / "heavy_bench_reclaim.toml", {"stockpile.surface_file": str(folder / pile)})
     assert windrow.stockpile.windrow is None and windrow.stockpile.surface_file == folder / pile
+
+
+def test_the_reclaim_of_a_stacked_pile_keeps_the_grade_its_cut_exposes(reclaimed, stacked, tmp_path):
+    """At the start each cell's top grade is the stacked pile's; where the wheel cut through a
+    layer, the grade below shows, within the grades stacked; pile.npz keeps it."""
+    from bwr_twin.stockpile.history import PileHistory
+    from bwr_twin.stockpile.layers import top_grade
+
+    result, _ = reclaimed
+    history = result.reclaim.history
+    record = stacked.stacking
+    ix = round((record.x[0] - history.x[0]) / (history.x[1] - history.x[0]))
+    iy = round((record.y[0] - history.y[0]) / (history.y[1] - history.y[0]))
+    start = np.full(history.z_start.shape, np.nan, np.float32)
+    start[iy:iy + len(record.y), ix:ix + len(record.x)] = top_grade(record.layer_grade, record.count)
+    np.testing.assert_array_equal(history.grade_start, start)
+    end = top_grades_until(history, result.time[-1])
+    exposed = (end != start) & np.isfinite(end)
+    assert exposed.sum() > 50  # the cut bared other layers
+    low, high = np.float32(record.grade.min()), np.float32(record.grade.max())
+    assert low <= end[exposed].min() and end[exposed].max() <= high  # a merged layer's lies between its two
+    write_run(result, tmp_path / "run", plots=False)
+    read = PileHistory.read(tmp_path / "run" / "pile.npz", float(result.time[-1]))
+    np.testing.assert_array_equal(read.grades, history.grades)
+    assert read.grade_name == "Fe %"

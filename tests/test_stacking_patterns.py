@@ -16,6 +16,7 @@ from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.stacking import LOWEST_MARGIN, plan_stacking, target_ridge
+from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
 from bwr_twin.stockpile.relaxation import Talus
 from bwr_twin.units import SECONDS_PER_HOUR
@@ -79,6 +80,18 @@ def test_the_tonnes_and_the_grade_balance_exactly(runs, name):
     assert metrics["tonnes_in_t"] == pytest.approx(section.tonnes, rel=1e-9)
     talus = Talus.of(section.grid_spacing, section.angle_of_repose)
     assert talus.excess(result.stacking.z) <= talus.tolerance and metrics["relaxations_unconverged"] == 0
+
+
+def test_each_pattern_says_how_many_equal_layers_its_passes_amount_to(runs):
+    """The law's N: (sum w)^2 / sum w^2 of the passes' weights. The windrow's 3 bottom rows of one
+    and 3 higher rows of two give 81 / 15; the strata's 3 rows of a third and 1 whole, 4 / 4/3;
+    cones, which do not run the pile's length, none. The console and pile.npz say the same."""
+    assert runs["windrow"].metrics["stacking"]["equivalent_layers"] == pytest.approx(81 / 15)
+    assert runs["strata"].metrics["stacking"]["equivalent_layers"] == pytest.approx(3.0)
+    assert math.isnan(runs["cone_shell"].metrics["stacking"]["equivalent_layers"])
+    assert runs["windrow"].stacking.pile_arrays()["equivalent_layers"] == pytest.approx(81 / 15)
+    assert "stacked 500.0 t in 3 windrow rows across " in summary_table(runs["windrow"].metrics)
+    assert " in 8 cone shells " in summary_table(runs["cone_shell"].metrics)
 
 
 @pytest.mark.parametrize("name", RUNS)

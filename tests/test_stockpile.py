@@ -320,7 +320,7 @@ def test_a_scene_without_a_pile_digs_nothing():
 
 
 @pytest.mark.parametrize("override, message", [
-    ({"stockpile.surface_file": "pile.csv"}, r"needs either a \[stockpile.windrow\] or a 'stockpile.surface_file', not both"),
+    ({"stockpile.windrow": None}, r"needs either a \[stockpile.windrow\] or a 'stockpile.surface_file', not both"),
     ({"stockpile.windrow.angle_of_repose": 95.0}, r"'stockpile.windrow.angle_of_repose' must lie in \(0, 90\) deg, got 95.0"),
     ({"stockpile.angle_of_repose": 90.0}, r"'stockpile.angle_of_repose' must lie in \(0, 90\) deg, got 90.0"),
     ({"stockpile.angle_of_repose": 0.65}, r"'stockpile.angle_of_repose' must lie in \[10, 60\] deg \(.*CEMA Table 3-1\), got 0.65"),
@@ -334,6 +334,16 @@ def test_a_bad_stockpile_is_named(override, message, tmp_path):
         scene = load_scene(SCENES / "heavy_dig_pile.toml", {k: str(tmp_path / v) if k.endswith("_file") else v
                                                             for k, v in override.items()})
         build_surface(scene.stockpile, scene.path)
+
+
+def test_one_file_giving_both_a_windrow_and_a_surface_is_refused_and_an_override_replaces_either(tmp_path):
+    (tmp_path / "pile.csv").write_text("0,0,1\n1,0,1\n0,1,1\n")
+    both = (SCENES / "heavy_dig_pile.toml").read_text().replace("[stockpile]\n", '[stockpile]\nsurface_file = "pile.csv"\n')
+    (tmp_path / "both.toml").write_text(both.replace('extends = "', f'extends = "{SCENES}/'))
+    with pytest.raises(SceneError, match=r"needs either a \[stockpile.windrow\] or a 'stockpile.surface_file', not both"):
+        load_scene(tmp_path / "both.toml")
+    surveyed = load_scene(SCENES / "heavy_dig_pile.toml", {"stockpile.surface_file": str(tmp_path / "pile.csv")})
+    assert surveyed.stockpile.windrow is None and surveyed.stockpile.surface_file == tmp_path / "pile.csv"
 
 
 def test_a_batch_summary_reports_each_run_s_reclaim(tmp_path):

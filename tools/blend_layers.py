@@ -48,9 +48,12 @@ def main() -> None:
     runs, start = [], time.perf_counter()
     for layers in args.layers:
         for seed in args.seeds:
-            runs.append(_stack_and_reclaim(layers, seed, stacking.stacking.rate * REFERENCE_LAYERS / layers, args.out))
+            rate = stacking.stacking.rate * REFERENCE_LAYERS / layers
+            runs.append({"layers": layers, "rate": rate, **stack_and_reclaim(
+                {"stacking.layers": layers, "stacking.rate": rate}, seed, args.out / f"stack_{layers}_seed_{seed}")})
             print(f"N = {layers}, seed {seed}: done, {time.perf_counter() - start:.0f} s", flush=True)
-    rows = [_pooled([run for run in runs if run["layers"] == layers], mean) for layers in args.layers]
+    rows = [{"layers": layers, "rate": stacking.stacking.rate * REFERENCE_LAYERS / layers,
+             **pooled([run for run in runs if run["layers"] == layers], mean)} for layers in args.layers]
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "blend_layers.json").write_text(json.dumps({"stream_mean": mean, "runs": runs, "rows": rows}, indent=1))
     print(f"\n{len(args.seeds)} seeds a row; ratios to the stream's spread per deposit, about the stream's mean "
@@ -67,12 +70,11 @@ def main() -> None:
     print(f"\nfigure: {args.out / 'blend_layers.png'}; numbers: {args.out / 'blend_layers.json'}")
 
 
-def _stack_and_reclaim(layers: int, seed: int, rate: float, out: Path) -> dict:
-    """One pile of `layers` stacked at `rate` t/h from the stream of `seed`, then reclaimed: the
-    deposits', the pile's full-face slices' and the discharges' tonnes and grades."""
-    stacked = simulate(load_scene(find_scene("heavy_chevron_stack"), {
-        "stacking.layers": layers, "stacking.rate": rate, "simulation.seed": seed}))
-    pile_dir = out / f"stack_{layers}_seed_{seed}"
+def stack_and_reclaim(overrides: dict, seed: int, pile_dir: Path) -> dict:
+    """heavy_chevron_stack with `overrides` from the stream of `seed`, written to `pile_dir`, then
+    reclaimed as heavy_stack_and_reclaim: the deposits', the pile's full-face slices' and the
+    discharges' and minute lots' tonnes and grades, and the law's N for the passes laid."""
+    stacked = simulate(load_scene(find_scene("heavy_chevron_stack"), {**overrides, "simulation.seed": seed}))
     write_run(stacked, pile_dir, overwrite=True, plots=False)
     reclaimed = simulate(load_scene(find_scene("heavy_stack_and_reclaim"), {
         "stockpile.surface_file": str(pile_dir / PILE_FILE), "simulation.seed": seed}))
@@ -82,14 +84,14 @@ def _stack_and_reclaim(layers: int, seed: int, rate: float, out: Path) -> dict:
     slice_volume = record.thickness.sum(axis=(0, 2))  # per grid column along the axis, m x cells
     slice_grade = (record.thickness * record.layer_grade).sum(axis=(0, 2)) / np.maximum(slice_volume, 1e-300)
     body = slice_volume >= FULL_SLICE * slice_volume.max()
-    return {"layers": layers, "seed": seed, "rate": rate,
+    return {"seed": seed, "equivalent_layers": stacked.metrics["stacking"]["equivalent_layers"],
             "deposits": (record.tonnes.tolist(), record.grade.tolist()),
             "slices": (slice_volume[body].tolist(), slice_grade[body].tolist()),
             "buckets": (out_grade["tonnes"].tolist(), out_grade["grade"].tolist()),
             "lots": (lot_tonnes.tolist(), lot_grade.tolist())}
 
 
-def _pooled(runs: list[dict], mean: float) -> dict:
+def pooled(runs: list[dict], mean: float) -> dict:
     """One row: the spreads of the seeds' samples pooled, as ratios to the deposits' about `mean`."""
     def joined(key):
         return tuple(np.concatenate([np.asarray(run[key][i]) for run in runs]) for i in (0, 1))
@@ -98,8 +100,7 @@ def _pooled(runs: list[dict], mean: float) -> dict:
         return math.sqrt(np.mean([tonne_weighted(*map(np.asarray, run[key]))[1] ** 2 for run in runs]))
 
     sd_in = rms_from(*joined("deposits"), mean)
-    return {"layers": runs[0]["layers"], "rate": runs[0]["rate"], "seeds": [run["seed"] for run in runs],
-            "sd_in": sd_in, "slices": rms_from(*joined("slices"), mean) / sd_in, "slices_own": own("slices") / sd_in,
+    return {"seeds": [run["seed"] for run in runs], "equivalent_layers": runs[0]["equivalent_layers"], "sd_in": sd_in, "slices": rms_from(*joined("slices"), mean) / sd_in, "slices_own": own("slices") / sd_in,
             "buckets": rms_from(*joined("buckets"), mean) / sd_in, "lots": rms_from(*joined("lots"), mean) / sd_in,
             "lots_own": own("lots") / sd_in, "tonnes_out": float(np.mean([np.sum(run["buckets"][0]) for run in runs]))}
 

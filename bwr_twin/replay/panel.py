@@ -15,10 +15,12 @@ import viser
 from bwr_twin.replay import readout
 from bwr_twin.replay.charts import charts
 from bwr_twin.replay.page_script import live_script_html
+from bwr_twin.replay.pile import PILE_COLOURS
 from bwr_twin.replay.scan_view import LIVE, PILE_SHOWN, scanned_note
 from bwr_twin.replay.style import hex_colour, run_colour
 
 if TYPE_CHECKING:
+    from bwr_twin.replay.grade_scale import GradeScale
     from bwr_twin.replay.runs import Run
 
 
@@ -36,6 +38,7 @@ class Player(Protocol):
     def paint(self, run: int | None) -> None: ...
     def show_pile(self, kind: str) -> None: ...
     def show_fan(self, shown: bool) -> None: ...
+    def colour_pile(self, kind: str) -> None: ...
 
 
 SPEEDS = (1, 100)  # x real time, the speed slider's range
@@ -71,9 +74,11 @@ def solid_choices(runs: Sequence[Run]) -> list[str]:
 
 class Panel:
     """The GUI of `runs` on `server`, wired to `player`'s commands; with `scanning`, the scanner's
-    controls (the pile shown, the fan)."""
+    controls (the pile shown, the fan); with a `grade` scale (a pile of grade), the pile's colour
+    and the scale's legend."""
 
-    def __init__(self, server: viser.ViserServer, runs: Sequence[Run], player: Player, *, scanning: bool = False):
+    def __init__(self, server: viser.ViserServer, runs: Sequence[Run], player: Player, *, scanning: bool = False,
+                 grade: GradeScale | None = None):
         self.server, self.runs = server, list(runs)
         gui = server.gui
         plan = self.runs[0].recording.plan
@@ -88,7 +93,8 @@ class Panel:
             self.speed_slider = gui.add_slider("Speed [x]", min=SPEEDS[0], max=SPEEDS[1], step=1,
                                                initial_value=INITIAL_SPEED, marks=(1, 10, 50, 100))
             landmarks = dict(plan.landmarks)
-            self.jump = gui.add_button_group("Jump to", list(landmarks))
+            # A stacking's plan has passes, no benches: nothing to jump to (viser refuses an empty group).
+            self.jump = gui.add_button_group("Jump to", list(landmarks)) if landmarks else None
         self.shown_boxes: list[viser.GuiCheckboxHandle] = []
         if len(self.runs) > 1:
             with gui.add_folder("Runs"):
@@ -124,6 +130,20 @@ class Panel:
                 if event.client is not None:
                     player.show_fan(bool(event.target.value))
 
+        self.pile_colour: viser.GuiDropdownHandle | None = None
+        self.grade_legend: viser.GuiHtmlHandle | None = None
+        if grade is not None:
+            with gui.add_folder("Pile"):
+                self.pile_colour = gui.add_dropdown(
+                    "Pile colour", PILE_COLOURS, initial_value=PILE_COLOURS[0],
+                    hint="ore: weathered, bright where freshly cut; grade: the grade of the layer exposed at each cell")
+                self.grade_legend = gui.add_html(grade.legend_html(), visible=False)
+
+            @self.pile_colour.on_update
+            def _(event: viser.GuiEvent) -> None:
+                if event.client is not None:  # a user's choice, not the player's own update
+                    player.colour_pile(str(event.target.value))
+
         with gui.add_folder("Readout"):
             self.readout = gui.add_markdown("")
         with gui.add_folder("Charts"):
@@ -150,9 +170,10 @@ class Panel:
             if event.client is not None:
                 player.set_speed(float(self.speed_slider.value))
 
-        @self.jump.on_click
-        def _(event: viser.GuiEvent) -> None:
-            player.seek(landmarks[event.target.value])
+        if self.jump is not None:
+            @self.jump.on_click
+            def _(event: viser.GuiEvent) -> None:
+                player.seek(landmarks[event.target.value])
 
     # -- drawn on the player's thread only ------------------------------------------------------
 
@@ -166,6 +187,14 @@ class Panel:
             self.pile_shown.value = pile
         if self.fan_shown is not None and self.fan_shown.value != fan:
             self.fan_shown.value = fan
+
+    def show_pile_colour(self, kind: str) -> None:
+        """The pile's colour as the player shows it, and the grade's legend with the grade."""
+        if self.pile_colour is None:
+            return
+        if self.pile_colour.value != kind:
+            self.pile_colour.value = kind
+        self.grade_legend.visible = kind == "grade"
 
     def show_readout(self, t: float, shown: Sequence[bool], duration: float) -> None:
         if len(self.runs) == 1:

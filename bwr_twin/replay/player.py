@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 import viser
 
 from bwr_twin.replay.panel import INITIAL_SPEED, SPEEDS, Panel
+from bwr_twin.replay.pile import PILE_COLOURS
 from bwr_twin.replay.runs import Run
 from bwr_twin.replay.scan_view import PILE_SHOWN
 from bwr_twin.replay.view import SceneView
@@ -37,9 +38,10 @@ class Player:
         self.speed = float(INITIAL_SPEED)
         self.shown = [True] * len(self.runs)
         self.pile_shown, self.fan_shown = "true", True  # with a run that scanned: which pile, and its fan
+        self.pile_colour = "ore"  # with a pile of grade: by ore or by its top layer's grade
         self._actions: queue.Queue[Callable[[], None]] = queue.Queue()
         self._stopped = threading.Event()
-        self.panel = Panel(server, self.runs, self, scanning=view.scanning)
+        self.panel = Panel(server, self.runs, self, scanning=view.scanning, grade=view.grade_scale)
         self.play_button, self.time_slider, self.speed_slider = (
             self.panel.play_button, self.panel.time_slider, self.panel.speed_slider)
         self.readout = self.panel.readout
@@ -81,6 +83,12 @@ class Player:
         """Show or hide the scan fan and the hits of the last second."""
         self._actions.put(lambda: self._show_fan(shown))
 
+    def colour_pile(self, kind: str) -> None:
+        """Colour a pile of grade by ore ("ore") or by the grade of its top layer ("grade")."""
+        if kind not in PILE_COLOURS:
+            raise ValueError(f"pile colour: {kind!r}, not one of {', '.join(PILE_COLOURS)}")
+        self._actions.put(lambda: self._colour_pile(kind))
+
     def _show_pile(self, kind: str) -> None:
         if kind == self.pile_shown:
             return
@@ -89,6 +97,14 @@ class Player:
             self.view.show_pile(kind)
             self.view.show(self.time)
             self.panel.show_scanner(kind, self.fan_shown)
+
+    def _colour_pile(self, kind: str) -> None:
+        if kind == self.pile_colour or self.view.grade_scale is None:
+            return
+        self.pile_colour = kind
+        with self.server.atomic():  # every tile in its new colours at once
+            self.view.colour_pile(kind)
+            self.panel.show_pile_colour(kind)
 
     def _show_fan(self, shown: bool) -> None:
         if shown == self.fan_shown:

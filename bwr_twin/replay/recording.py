@@ -28,6 +28,7 @@ from bwr_twin.planning.follower import Stage
 from bwr_twin.replay.scans import Scans
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
+from bwr_twin.stockpile.layers import top_grade
 from bwr_twin.stockpile.surface import Surface, build_surface
 
 if TYPE_CHECKING:
@@ -257,7 +258,8 @@ class Recording:
                 reclaim.x, reclaim.y, reclaim.z_start, reclaim.z_end, float(result.time[-1]))
         elif stacking is not None:  # the pile it stacked, grown from the bare yard
             pile = stacking.history or PileHistory.start_and_end(
-                stacking.x, stacking.y, np.zeros_like(stacking.z), stacking.z, float(result.time[-1]))
+                stacking.x, stacking.y, np.zeros_like(stacking.z), stacking.z, float(result.time[-1]),
+                top_grade(stacking.layer_grade, stacking.count), stacking.grade_name, stacking.band)
         return cls._from_columns(columns, result.scene.to_dict(), result.machine, title=result.scene.path.name,
                                  pile=pile, run=result.metrics["run"], scans=Scans.of(getattr(result, "scan", None)))
 

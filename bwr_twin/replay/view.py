@@ -22,6 +22,7 @@ import numpy as np
 import viser
 
 from bwr_twin.replay.geometry import BodyPoser, visual_geoms
+from bwr_twin.replay.grade_scale import GradeScale
 from bwr_twin.replay.machine_view import MachineView, Paint, segments
 from bwr_twin.replay.pile import PileView
 from bwr_twin.replay.recording import Plan, Recording, decimate
@@ -156,6 +157,11 @@ class Site:
         if self.scans is not None:
             self.fan_shown = self.scans.visible = shown
 
+    def colour_pile(self, kind: str, scale: GradeScale | None) -> None:
+        """Colour the pile by ore or by the grade of its top layer (bwr_twin.replay.pile), if it has grade."""
+        if self.pile is not None and self.pile.graded:
+            self.pile.colour_by(kind, scale)
+
     def show(self, t: float, cp_desired: np.ndarray) -> None:
         self.target.position = cp_desired
         both = self.drawing.both_piles
@@ -198,6 +204,7 @@ class SceneView:
         self.machines = [MachineView(scene, plan, k, run_colour(k), paint) for k, (plan, paint) in
                          enumerate(zip(plans, paints))]
         self.recordings: list[Recording | None] = [None] * len(plans)
+        self._grade_scale: GradeScale | None = None  # of the sites' piles with grade, once asked for
         # What each site's first run draws over its run (runs of one site follow its path, a few
         # centimetres apart): the row's spacing and the camera's framing.
         firsts = [self.site_of.index(s) for s in range(len(self.sites))]
@@ -250,6 +257,7 @@ class SceneView:
         self.machines[k].attach(recording)
         if self.site_of.index(self.site_of[k]) == k:
             self.sites[self.site_of[k]].attach(recording)
+            self._grade_scale = None
 
     def paint(self, solid: int | None) -> None:
         """Run `solid` in its MJCF colours and every other one translucent in its own colour; with
@@ -274,6 +282,21 @@ class SceneView:
         """At every site whose run scanned, show or hide the scan fan and the hits."""
         for site in self.sites:
             site.show_fan(shown)
+
+    @property
+    def grade_scale(self) -> GradeScale | None:
+        """One colour scale for the top grade of every site's pile that has grade (a stacking's, a
+        reclaim of a stacked pile), so that a colour is one grade at every site; None if none has."""
+        if self._grade_scale is None:
+            self._grade_scale = GradeScale.of([site.pile.dug.history for site in self.sites
+                                               if site.pile is not None and site.pile.graded])
+        return self._grade_scale
+
+    def colour_pile(self, kind: str) -> None:
+        """At every site whose pile has grade, colour it by ore ("ore") or by its top layer's grade ("grade")."""
+        scale = self.grade_scale
+        for site in self.sites:
+            site.colour_pile(kind, scale)
 
     def show(self, t: float) -> None:
         """Pose every shown run's machine and trail, and every site's target and pile, for time t (s)."""

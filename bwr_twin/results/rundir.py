@@ -6,7 +6,8 @@ Layout of a run directory (the output contract of docs/contracts.md, plus more):
     timeseries.csv    every signal at the record period; units in the column names
     scene.json        the resolved scene, so the run can be replayed without its files' paths
     pile.npz          with a stockpile: x, y (grid lines, m), z_start, z_end (heights, m), and
-                      for a replay the cells dug frame by frame (bwr_twin.stockpile.history);
+                      for a replay the cells dug frame by frame (bwr_twin.stockpile.history),
+                      on a pile of layers with their top layer's grade;
                       stacked: the pile's grade layers and every deposit too
     scans.npz         with a stockpile and a machine that scans: every scan's time, origin and
     survey.npz        hits, and the pile known from them at the end (bwr_twin.sensing.outputs)

@@ -10,6 +10,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from bwr_twin.results.layout import fit_titles
+from bwr_twin.results.summary import law_text, pattern_text
 from bwr_twin.sim.record import RunResult
 
 SECTION_STEP = 0.05  # m between the heights a section is drawn at
@@ -107,8 +108,9 @@ def blend_figure(result: RunResult, subtitle: str) -> Figure:
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", ncols=2)
     ax.set_title(f"{blend['tonnes_out_t']:,.0f} t out at {blend['grade_out_mean']:.3f} ± {blend['grade_out_sd']:.3f} "
-                 f"{name}, stacked at {blend['grade_in_mean']:.3f} ± {blend['grade_in_sd']:.3f} in {blend['layers']} "
-                 f"layers: sd ratio {blend['sd_ratio']:.3f} (1/sqrt(N) {blend['sqrt_n_ratio']:.3f})")
+                 f"{name}, stacked at {blend['grade_in_mean']:.3f} ± {blend['grade_in_sd']:.3f} in "
+                 f"{pattern_text(blend['pattern'], blend['layers'])}: sd ratio {blend['sd_ratio']:.3f} "
+                 f"({law_text(blend['equivalent_layers'])})")
     fig.suptitle(f"The blend reclaimed from the stacked pile\n{subtitle}")
     fit_titles(fig)
     return fig

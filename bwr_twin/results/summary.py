@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import math
+
 from bwr_twin.model.machine import AXES, UNITS, to_display
 
 
@@ -55,10 +57,16 @@ def summary_table(metrics: dict) -> str:
     return "\n".join(lines)
 
 
+def pattern_text(pattern: str, layers: int) -> str:
+    """What a pattern's `layers` counts, in words: "32 chevron layers", "5 windrow rows across"."""
+    return {"chevron": f"{layers} chevron layers", "windrow": f"{layers} windrow rows across",
+            "strata": f"{layers} strata", "cone_shell": f"{layers} cone shells"}[pattern]
+
+
 def stacking_line(stacking: dict) -> str:
     """What a stacking run laid, the grade it came at, and the balance of tonnes."""
     name = stacking["grade_name"]
-    return (f"stacked {stacking['tonnes_in_t']:,.1f} t in {stacking['layers']} {stacking['pattern']} layers "
+    return (f"stacked {stacking['tonnes_in_t']:,.1f} t in {pattern_text(stacking['pattern'], stacking['layers'])} "
             f"({stacking['deposits']} deposits): crest {stacking['crest_height_m']:.2f} m (target "
             f"{stacking['target_height_m']:.2f} m); grade in {stacking['grade_in_mean']:.3f} ± "
             f"{stacking['grade_in_sd']:.3f} {name}; the pile holds {stacking['pile_t']:,.1f} t "
@@ -73,8 +81,15 @@ def blend_line(blend: dict) -> str:
                "at most" if band is not None else "")
     return (f"blended: {blend['tonnes_out_t']:,.1f} t out at {blend['grade_out_mean']:.3f} ± "
             f"{blend['grade_out_sd']:.3f} {name} (stacked at {blend['grade_in_mean']:.3f} ± "
-            f"{blend['grade_in_sd']:.3f} in {blend['layers']} layers): sd ratio {blend['sd_ratio']:.3f}, "
-            f"1/sqrt(N) {blend['sqrt_n_ratio']:.3f}{outside}; balance {blend['balance_relative']:.1e}")
+            f"{blend['grade_in_sd']:.3f} in {pattern_text(blend['pattern'], blend['layers'])}): sd ratio "
+            f"{blend['sd_ratio']:.3f}, {law_text(blend['equivalent_layers'])}{outside}; balance {blend['balance_relative']:.1e}")
+
+
+def law_text(layers: float) -> str:
+    """1/sqrt(N) for the N equal layers a pattern's passes amount to; none for cone shells."""
+    if math.isnan(layers):
+        return "no 1/sqrt(N): the cones do not run the pile's length"
+    return f"1/sqrt(N) {1 / math.sqrt(layers):.3f}" + ("" if layers == round(layers) else f" (N = {layers:.1f})")
 
 
 def intervention_text(intervention: dict) -> str:

@@ -107,6 +107,10 @@ class LayeredPile:
         """grade x m^3 in the pile, from its layers: over volume(), its mean grade."""
         return float(np.sum(self.thickness * self.grade) * self.cell_area)
 
+    def top_grade(self) -> np.ndarray:
+        """(ny, nx) the grade of each column's top layer, the one exposed; NaN on bare ground."""
+        return top_grade(self.grade, self.count)
+
     def column_heights(self) -> np.ndarray:
         """(ny, nx) m: each column's thicknesses summed, above the yard floor (equal to z, to rounding)."""
         return YARD_FLOOR + self.thickness.sum(axis=2)
@@ -172,6 +176,14 @@ class LayeredPile:
         """(cells, max_layers) views of thickness and grade, and the (cells,) counts."""
         cells = self.z.size
         return (self.thickness.reshape(cells, -1), self.grade.reshape(cells, -1), self.count.reshape(cells))
+
+
+def top_grade(grade: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """(ny, nx) the grade of each column's top layer, of layers `grade` (ny, nx, max_layers) and
+    their `count` (ny, nx) as a LayeredPile or a stacked pile.npz holds them; NaN where a column
+    is empty."""
+    top = np.take_along_axis(grade, np.maximum(count - 1, 0)[..., None], axis=2)[..., 0]
+    return np.where(count > 0, top, np.nan)
 
 
 @numba.njit(cache=True)

@@ -106,7 +106,7 @@ class Reclaim:
         self.cut: Cut | None = None
         self.cp = np.zeros((runs, 3))
         self._frame_every = frame_every
-        self._frames = PileFrames(self.cutter.heights) if frame_every else None
+        self._frames = PileFrames(self.cutter.heights, self._top_grades()) if frame_every else None
 
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray | None:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
@@ -123,7 +123,7 @@ class Reclaim:
         self.depth[:] = cut.depth
         np.maximum(self.depth_max, cut.depth, out=self.depth_max)
         if self._frames is not None and k % self._frame_every == 0:
-            self._frames.keep(k * self.period, self.cutter.heights)
+            self._frames.keep(k * self.period, self.cutter.heights, self._top_grades())
         return self.digging.step(q, cp, cut) if self.digging is not None else None
 
     def _stack(self, scenes: Sequence[Scene]) -> None:
@@ -137,6 +137,10 @@ class Reclaim:
                              f"({scene.stockpile.surface_file})")
         self.layers = [copy.deepcopy(stacked.pile) for _ in scenes]
         self.conveyor.track_grade()
+
+    def _top_grades(self) -> list[np.ndarray] | None:
+        """On a stacked pile, each run's (ny, nx) top layer's grade, for the replay; else None."""
+        return None if self.layers is None else [layers.top_grade() for layers in self.layers]
 
     def _cut_layers(self, cut: Cut) -> np.ndarray:
         """(runs,) grade x m^3 of what each run's wheel cut this period: its layers lowered to the
@@ -184,7 +188,9 @@ class Reclaim:
             "grade_out_sd_minute": lot_sd(tonnes, grade, minute),
             "grade_out_rms_minute": rms_from(*lots(tonnes, grade, minute), stacked.grade_in_mean),
             "sd_ratio": sd / stacked.grade_in_sd if stacked.grade_in_sd > 0 else float("nan"),
-            "sqrt_n_ratio": 1.0 / math.sqrt(stacked.layers),
+            "pattern": stacked.pattern,
+            "equivalent_layers": stacked.equivalent_layers,
+            "sqrt_n_ratio": 1.0 / math.sqrt(stacked.equivalent_layers),  # NaN for cone shells
             "variance_reduction": (stacked.grade_in_sd / sd) ** 2 if sd > 0 else float("inf"),
             "band": list(stacked.band) if stacked.band is not None else None,
             "longest_outside_band_s": _longest_outside(t, grade, stacked.band, self.conveyor.bucket_interval),
@@ -228,9 +234,10 @@ class Reclaim:
                 "name": self.stacked.grade_name}
 
     def pile(self, run: int) -> dict:
-        """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept)."""
-        return dict(
-            x=self.surface.x, y=self.surface.y, z_start=self.surface.z, z_end=self.cutter.heights[run].copy(),
-            history=self._frames.history(run, self.surface.x, self.surface.y, self.surface.z)
-            if self._frames is not None else None,
-        )
+        """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept; on a
+        stacked pile with its top layers' grade)."""
+        grade = (self.stacked.grade_name, self.stacked.band) if self.stacked is not None else ()
+        history = (self._frames.history(run, self.surface.x, self.surface.y, self.surface.z, *grade)
+                   if self._frames is not None else None)
+        return {"x": self.surface.x, "y": self.surface.y, "z_start": self.surface.z,
+                "z_end": self.cutter.heights[run].copy(), "history": history}

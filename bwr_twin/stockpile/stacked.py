@@ -31,7 +31,9 @@ class StackedPile:
         bulk_density: kg/m^3 it was stacked at.
         grade_name: what its grade is ("Fe %"); `band` the grade its customer accepts, or None.
         grade_in_mean, grade_in_sd: the tonne-weighted grade of what was stacked, and its spread.
-        layers: the passes it was stacked in.
+        layers: the scene's `layers` it was stacked in; equivalent_layers the law's N for its
+            passes (NaN for cone shells; a file from before the patterns, a chevron's: `layers`);
+            pattern the scene's.
     """
 
     pile: LayeredPile
@@ -41,6 +43,8 @@ class StackedPile:
     grade_in_mean: float
     grade_in_sd: float
     layers: int
+    equivalent_layers: float
+    pattern: str
 
 
 def read_stacked(file: Path, surface: Surface, scene_path: Path) -> StackedPile:
@@ -64,7 +68,8 @@ def read_stacked(file: Path, surface: Surface, scene_path: Path) -> StackedPile:
     mean, sd = tonne_weighted(tonnes, grades)
     band = tuple(float(v) for v in arrays["grade_band"]) if "grade_band" in arrays else None
     return StackedPile(pile, float(arrays["bulk_density"]), str(arrays["grade_name"]), band, mean, sd,
-                       int(arrays["layers"]))
+                       int(arrays["layers"]), float(arrays.get("equivalent_layers", arrays["layers"])),
+                       str(arrays.get("pattern", "chevron")))
 
 
 @functools.lru_cache(maxsize=2)

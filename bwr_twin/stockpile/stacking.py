@@ -19,6 +19,7 @@ import numpy as np
 
 from bwr_twin.config.scene import GradeSection, Scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.planning.patterns import equivalent_layers
 from bwr_twin.planning.stacking import StackingPlan
 from bwr_twin.stockpile.deposition import discharge
 from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade, tonne_weighted
@@ -58,6 +59,8 @@ class StackingRecord:
     grade_name: str
     bulk_density: float  # kg/m^3
     layers: int  # the scene's `layers`: chevron passes, windrow bottom rows, cones or strata
+    equivalent_layers: float  # the law's N for the passes laid (bwr_twin.planning.patterns.equivalent_layers)
+    pattern: str  # the scene's: "chevron", "windrow", "cone_shell" or "strata"
     band: tuple[float, float] | None  # the grade the customer accepts, or None
     history: PileHistory | None = None  # the pile as it grew, if kept for a replay
 
@@ -70,12 +73,13 @@ class StackingRecord:
 
     def pile_arrays(self) -> dict[str, np.ndarray]:
         """pile.npz's arrays (output contract, docs/contracts.md)."""
-        history = self.history.arrays() if self.history is not None else {}
-        return dict(x=self.x, y=self.y, z_start=np.zeros_like(self.z), z_end=self.z, layer_thickness=self.thickness,
-                    layer_grade=self.layer_grade, layer_count=self.count, deposit_t=self.t,
-                    deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point,
-                    bulk_density=self.bulk_density, grade_name=self.grade_name, layers=self.layers,
-                    **({"grade_band": np.array(self.band)} if self.band is not None else {}), **history)
+        history = self.history.arrays() if self.history is not None else {}  # its grade's name and band are these
+        return {**dict(x=self.x, y=self.y, z_start=np.zeros_like(self.z), z_end=self.z, layer_thickness=self.thickness,
+                       layer_grade=self.layer_grade, layer_count=self.count, deposit_t=self.t,
+                       deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point,
+                       bulk_density=self.bulk_density, grade_name=self.grade_name, layers=self.layers,
+                       equivalent_layers=self.equivalent_layers, pattern=self.pattern,
+                       **({"grade_band": np.array(self.band)} if self.band is not None else {})), **history}
 
 
 class Stacking:
@@ -87,6 +91,7 @@ class Stacking:
         keep the cells changed every that many control periods, for a replay."""
         section = scenes[0].stacking
         self.section, self.machine, self.plan, self.period = section, machine, plan, period
+        self.equivalent_layers = equivalent_layers(plan.layout)
         self.material = Material(section.bulk_density, section.angle_of_repose)
         self.piles = [LayeredPile(plan.x, plan.y, section.max_layers) for _ in scenes]
         self.talus = Talus.of(self.piles[0].spacing, section.angle_of_repose)
@@ -96,7 +101,8 @@ class Stacking:
         self.deposits: list[list[tuple[float, float, float, float, float]]] = [[] for _ in scenes]
         self.unconverged = np.zeros(len(scenes), dtype=np.int64)  # relaxations that ran out of rounds
         self._frame_every = frame_every
-        self._frames = PileFrames([pile.z for pile in self.piles]) if frame_every else None
+        self._frames = (PileFrames([pile.z for pile in self.piles], [pile.top_grade() for pile in self.piles])
+                        if frame_every else None)
 
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> None:
         """Period k: a deposit if one falls due, where the true joints q (runs, 3) put the
@@ -117,17 +123,18 @@ class Stacking:
             self.deposits[run].append((start, grade, laid.tonnes, x, y))
         last = start + span >= self.duration
         if self._frames is not None and (k % self._frame_every < self.every or last):  # the last, so the replay ends on the pile
-            self._frames.keep(start, [pile.z for pile in self.piles])
+            self._frames.keep(start, [pile.z for pile in self.piles], [pile.top_grade() for pile in self.piles])
 
     def record(self, run: int) -> StackingRecord:
         pile = self.piles[run]
         t, grade, tonnes, x, y = self._deposits(run)
-        history = (self._frames.history(run, pile.x, pile.y, np.zeros_like(pile.z))
-                   if self._frames is not None else None)
         section = self.section
+        history = (self._frames.history(run, pile.x, pile.y, np.zeros_like(pile.z), section.grade.name,
+                                        section.grade.band) if self._frames is not None else None)
         return StackingRecord(t, grade, tonnes, np.column_stack([x, y]), pile.x, pile.y, pile.z.copy(),
                               pile.thickness.copy(), pile.grade.copy(), pile.count.copy(), section.grade.name,
-                              section.bulk_density, section.layers, section.grade.band, history)
+                              section.bulk_density, section.layers, self.equivalent_layers, section.pattern,
+                              section.grade.band, history)
 
     def _deposits(self, run: int) -> tuple[np.ndarray, ...]:
         """(deposits,) times, grades, tonnes, x and y of the run's deposits."""
@@ -147,6 +154,7 @@ class Stacking:
         return {
             "pattern": self.section.pattern,
             "layers": self.section.layers,
+            "equivalent_layers": self.equivalent_layers,
             "deposits": len(t),
             "tonnes_in_t": tonnes_in,
             "pile_t": held,
