@@ -246,3 +246,14 @@ def test_strata_run_holds_each_stratum_head_and_spans_its_rows(runs, machine):
 def test_a_pattern_the_machine_cannot_lay_is_refused_naming_the_key(name, overrides, message):
     with pytest.raises(SceneError, match=message):
         simulate(load_scene(SCENE, {**RUNS[name], **overrides}))
+
+
+@pytest.mark.parametrize("name", ["windrow", "strata", "cone_shell"])
+def test_each_shipped_pattern_scene_plans_its_20_kt_within_the_rated_travel(name, machine):
+    """heavy_<pattern>_stack: heavy_chevron_stack's pile on another pattern, planned whole: the
+    stream's two hours, every pass within the travel's rated speed."""
+    scene = load_scene(SCENES / f"heavy_{name}_stack.toml")
+    plan = plan_stacking(scene, machine, scene.simulation.control_period)
+    assert scene.stacking.pattern == name and scene.stacking.tonnes == 20000.0
+    assert plan.time[-1] == pytest.approx(scene.stacking.tonnes / scene.stacking.rate * SECONDS_PER_HOUR)
+    assert np.all(plan.speeds <= machine.rated_speed[0]) and np.all(np.abs(plan.rows[1][:, 0]) <= machine.rated_speed[0] + 1e-9)

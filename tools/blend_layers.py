@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter, ScalarFormatter
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.results.rundir import PILE_FILE, write_run
@@ -42,32 +43,45 @@ def main() -> None:
     parser.add_argument("--layers", type=int, nargs="+", default=[16, 32, 64, 128])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4])
     parser.add_argument("--out", type=Path, default=Path("out/blend_layers"))
+    parser.add_argument("--redraw", action="store_true", help="the table and figure again from --out's "
+                        "blend_layers.json, without running")
     args = parser.parse_args()
-    stacking = load_scene(find_scene("heavy_chevron_stack"))
-    mean = stacking.stacking.grade.mean  # the stream's own mean
-    runs, start = [], time.perf_counter()
-    for layers in args.layers:
-        for seed in args.seeds:
-            rate = stacking.stacking.rate * REFERENCE_LAYERS / layers
-            runs.append({"layers": layers, "rate": rate, **stack_and_reclaim(
-                {"stacking.layers": layers, "stacking.rate": rate}, seed, args.out / f"stack_{layers}_seed_{seed}")})
-            print(f"N = {layers}, seed {seed}: done, {time.perf_counter() - start:.0f} s", flush=True)
-    rows = [{"layers": layers, "rate": stacking.stacking.rate * REFERENCE_LAYERS / layers,
-             **pooled([run for run in runs if run["layers"] == layers], mean)} for layers in args.layers]
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "blend_layers.json").write_text(json.dumps({"stream_mean": mean, "runs": runs, "rows": rows}, indent=1))
-    print(f"\n{len(args.seeds)} seeds a row; ratios to the stream's spread per deposit, about the stream's mean "
-          f"{mean:g} and (own) about the sample's own mean\n")
-    print("| N | rate t/h | sd in | slices | slices (own) | buckets | minute lots | minute lots (own) | 1/sqrt(N) "
+    numbers = args.out / "blend_layers.json"
+    if args.redraw:
+        saved = json.loads(numbers.read_text())
+        mean, runs = saved["stream_mean"], saved["runs"]
+    else:
+        stacking = load_scene(find_scene("heavy_chevron_stack"))
+        mean = stacking.stacking.grade.mean  # the stream's own mean
+        runs, start = [], time.perf_counter()
+        for layers in args.layers:
+            for seed in args.seeds:
+                rate = stacking.stacking.rate * REFERENCE_LAYERS / layers
+                runs.append({"layers": layers, "rate": rate, **stack_and_reclaim(
+                    {"stacking.layers": layers, "stacking.rate": rate}, seed, args.out / f"stack_{layers}_seed_{seed}")})
+                print(f"N = {layers}, seed {seed}: done, {time.perf_counter() - start:.0f} s", flush=True)
+        args.out.mkdir(parents=True, exist_ok=True)
+        numbers.write_text(json.dumps({"stream_mean": mean, "runs": runs}, indent=1))
+    counts = sorted({run["layers"] for run in runs})
+    rows = [{"layers": n, "rate": next(run["rate"] for run in runs if run["layers"] == n),
+             **pooled([run for run in runs if run["layers"] == n], mean)} for n in counts]
+    print(f"\n{len(rows[0]['seeds'])} seeds a row; ratios to the stream's spread per deposit, about the stream's "
+          f"mean {mean:g} (± the standard error over the seeds) and (own) about the sample's own mean\n")
+    print("| N | rate t/h | slices | slices (own) | buckets | minute lots | minute lots (own) | 1/sqrt(N) "
           "| t reclaimed a run |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in rows:
-        print(f"| {row['layers']} | {row['rate']:,.0f} | {row['sd_in']:.3f} | {row['slices']:.3f} | "
-              f"{row['slices_own']:.3f} | {row['buckets']:.3f} | {row['lots']:.3f} | {row['lots_own']:.3f} | "
+        print(f"| {row['layers']} | {row['rate']:,.0f} | {pm(row, 'slices')} | {row['slices_own']:.3f} | "
+              f"{pm(row, 'buckets')} | {pm(row, 'lots')} | {row['lots_own']:.3f} | "
               f"{1 / math.sqrt(row['layers']):.3f} | {row['tonnes_out']:,.0f} |")
-    ideal = [blending.blend(layers).ratio for layers in args.layers]
-    _figure(rows, ideal, len(args.seeds)).savefig(args.out / "blend_layers.png", dpi=110)
-    print(f"\nfigure: {args.out / 'blend_layers.png'}; numbers: {args.out / 'blend_layers.json'}")
+    ideal = [blending.blend(n).ratio for n in counts]
+    _figure(rows, ideal).savefig(args.out / "blend_layers.png", dpi=110)
+    print(f"\nfigure: {args.out / 'blend_layers.png'}; numbers: {numbers}")
+
+
+def pm(row: dict, key: str) -> str:
+    """A row's ratio and its standard error over the seeds."""
+    return f"{row[key]:.3f} ± {row[key + '_se']:.3f}"
 
 
 def stack_and_reclaim(overrides: dict, seed: int, pile_dir: Path) -> dict:
@@ -92,38 +106,56 @@ def stack_and_reclaim(overrides: dict, seed: int, pile_dir: Path) -> dict:
 
 
 def pooled(runs: list[dict], mean: float) -> dict:
-    """One row: the spreads of the seeds' samples pooled, as ratios to the deposits' about `mean`."""
-    def joined(key):
-        return tuple(np.concatenate([np.asarray(run[key][i]) for run in runs]) for i in (0, 1))
+    """One row: each seed's spreads as ratios to its deposits', about the stream's `mean`, pooled
+    (the root mean square of the seeds' ratios) with their standard error over the seeds; and the
+    same about each sample's own mean, as metrics.json gives it."""
+    def ratios(key: str, about_mean: bool = True) -> np.ndarray:
+        out = []
+        for run in runs:
+            tonnes, grade = (np.asarray(v) for v in run[key])
+            spread = rms_from(tonnes, grade, mean) if about_mean else tonne_weighted(tonnes, grade)[1]
+            out.append(spread / rms_from(*(np.asarray(v) for v in run["deposits"]), mean))
+        return np.array(out)
 
-    def own(key):  # each run's spread about its own mean, the runs' variances averaged
-        return math.sqrt(np.mean([tonne_weighted(*map(np.asarray, run[key]))[1] ** 2 for run in runs]))
+    row = {"seeds": [run["seed"] for run in runs], "equivalent_layers": runs[0]["equivalent_layers"],
+           "tonnes_out": float(np.mean([np.sum(run["buckets"][0]) for run in runs]))}
+    for key in ("slices", "buckets", "lots"):
+        values = ratios(key)
+        row[key] = float(np.sqrt(np.mean(values**2)))
+        row[key + "_se"] = float(np.std(values, ddof=1) / math.sqrt(len(values))) if len(values) > 1 else float("nan")
+    for key in ("slices", "lots"):
+        row[key + "_own"] = float(np.sqrt(np.mean(ratios(key, about_mean=False) ** 2)))
+    return row
 
-    sd_in = rms_from(*joined("deposits"), mean)
-    return {"seeds": [run["seed"] for run in runs], "equivalent_layers": runs[0]["equivalent_layers"], "sd_in": sd_in, "slices": rms_from(*joined("slices"), mean) / sd_in, "slices_own": own("slices") / sd_in,
-            "buckets": rms_from(*joined("buckets"), mean) / sd_in, "lots": rms_from(*joined("lots"), mean) / sd_in,
-            "lots_own": own("lots") / sd_in, "tonnes_out": float(np.mean([np.sum(run["buckets"][0]) for run in runs]))}
 
-
-def _figure(rows: list[dict], ideal: list[float], seeds: int) -> Figure:
-    """The ratios against N, on log axes where 1/sqrt(N) is a straight line."""
+def _figure(rows: list[dict], ideal: list[float]) -> Figure:
+    """The ratios against N, on log axes where 1/sqrt(N) is a straight line; the bars are the
+    standard error over the seeds."""
     layers = np.array([row["layers"] for row in rows], dtype=float)
     fig = Figure(figsize=(8.5, 6), layout="constrained")
     ax = fig.subplots()
-    ax.loglog(layers, 1.0 / np.sqrt(layers), "k--", lw=1.0, label="1/sqrt(N), the law (Gerstel; Kohlhaas and Labahn)")
-    ax.loglog(layers, ideal, "ks", mfc="none", label="ideal chevron pile, full-face slices (bwr_twin.stockpile.blending)")
-    ax.loglog(layers, [row["slices"] for row in rows], "D-", color="C2", label="the stacked pile, full-face slices")
-    ax.loglog(layers, [row["buckets"] for row in rows], "o-", color="C0", label="bench-reclaimed: bucket by bucket")
-    ax.loglog(layers, [row["lots"] for row in rows], "^-", color="C1", label="bench-reclaimed: lots of a minute")
-    ax.loglog(layers, [row["lots_own"] for row in rows], "^:", color="C1", mfc="none",
-              label="the same lots about their own reclaim's mean")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.plot(layers, 1.0 / np.sqrt(layers), "k--", lw=1.0, label="1/sqrt(N), the law (Gerstel; Kohlhaas and Labahn)")
+    ax.plot(layers, ideal, "ks", mfc="none", label="an ideal chevron pile, full-face slices (stockpile/blending.py)")
+    for key, style, colour, label in (("slices", "D-", "C2", "the stacked pile, full-face slices"),
+                                      ("buckets", "o-", "C0", "bench-reclaimed, bucket by bucket"),
+                                      ("lots", "^-", "C1", "bench-reclaimed, lots of a minute")):
+        ax.errorbar(layers, [row[key] for row in rows], yerr=[row[key + "_se"] for row in rows], fmt=style,
+                    color=colour, capsize=3, label=label)
+    ax.plot(layers, [row["lots_own"] for row in rows], "^:", color="C1", mfc="none",
+            label="the same lots about their own reclaim's mean, as metrics.json gives it")
     ax.set_xticks(layers, [f"{n:g}" for n in layers])
-    ax.set_xlabel("N, layers stacked")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.set_yticks([0.05, 0.1, 0.2, 0.3, 0.5], ["0.05", "0.1", "0.2", "0.3", "0.5"])
+    ax.set_xlabel("N, layers stacked (chevron)")
     ax.set_ylabel("sigma_out / sigma_in, about the stream's mean unless said")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="lower left", fontsize=8)
-    ax.set_title(f"The blend against the number of layers: 20,000 t stacked, the first 30 m reclaimed in two benches "
-                 f"({seeds} seeds each)", fontsize=10)
+    ax.set_title(f"The blend against the number of layers: 20,000 t stacked, the first 30 m reclaimed in two\n"
+                 f"benches, {len(rows[0]['seeds'])} seeds each (bars: the standard error over them)", fontsize=10)
     return fig
 
 

@@ -20,7 +20,7 @@ import math
 import time
 from pathlib import Path
 
-from blend_layers import pooled, stack_and_reclaim
+from blend_layers import pm, pooled, stack_and_reclaim
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.shipped import find_scene
@@ -49,15 +49,15 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "blend_patterns.json").write_text(json.dumps({"stream_mean": mean, "rows": rows}, indent=1))
     print(f"\n{len(args.seeds)} seeds a row; ratios to the stream's spread per deposit, about the stream's mean "
-          f"{mean:g} and (own) about the sample's own mean\n")
+          f"{mean:g} (± the standard error over the seeds) and (own) about the sample's own mean\n")
     print("| pattern | `layers` | N, equal layers | slices | buckets | minute lots | minute lots (own) | 1/sqrt(N) "
           "| t reclaimed a run |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for row in rows:
         n = row["equivalent_layers"]
         law = "-" if math.isnan(n) else f"{1 / math.sqrt(n):.3f}"
-        print(f"| {row['pattern']} | {row['layers']} | {n:.1f} | {row['slices']:.3f} | {row['buckets']:.3f} | "
-              f"{row['lots']:.3f} | {row['lots_own']:.3f} | {law} | {row['tonnes_out']:,.0f} |")
+        print(f"| {row['pattern']} | {row['layers']} | {n:.1f} | {pm(row, 'slices')} | {pm(row, 'buckets')} | "
+              f"{pm(row, 'lots')} | {row['lots_own']:.3f} | {law} | {row['tonnes_out']:,.0f} |")
 
 
 if __name__ == "__main__":
