@@ -16,6 +16,7 @@ from bwr_twin import ModelError, SceneError
 from bwr_twin.config.scene import StockpileSection, WindrowSection, load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_heights
+from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.digging import jacobian_transpose
@@ -73,6 +74,7 @@ def test_the_faces_a_cut_leaves_slump_to_the_angle_of_repose_and_the_pile_still_
     # The slumped material fell into the wheel's way and was dug: more than the face alone gave.
     assert reclaim["dug_m3"] > short_dig.metrics["reclaim"]["dug_m3"]
     assert "slumped_m3" not in short_dig.metrics["reclaim"]  # a pile without the angle is as before
+    assert f"the cut faces slumped {reclaim['slumped_m3']:,.0f} m³" in summary_table(slumping.metrics)
 
 
 def _prism(height: float, x: tuple[float, float], y: tuple[float, float], spacing: float) -> Surface:

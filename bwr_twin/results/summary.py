@@ -31,6 +31,7 @@ def summary_table(metrics: dict) -> str:
             f"peak {reclaim['rate_max_tph']:.0f} t/h, reclaim rate CV while carrying (std/mean) "
             f"{reclaim['rate_cv']:.2f}; spilled {reclaim['spill_t']:.1f} t"
             + (f"; digging load up to {load / 1e3:.0f} kN" if load > 0 else "")
+            + (f"; the cut faces slumped {reclaim['slumped_m3']:,.0f} m³" if "slumped_m3" in reclaim else "")
         )
         if "target_rate_tph" in reclaim:
             lines.append(plan_line(reclaim))
