@@ -94,6 +94,7 @@ def test_the_run_directory_keeps_the_layers_the_deposits_and_the_grade_in_time(s
     with np.load(tmp_path / "run" / "pile.npz") as pile:
         np.testing.assert_array_equal(pile["layer_grade"], stacked.stacking.layer_grade)
         np.testing.assert_array_equal(pile["deposit_grade"], stacked.stacking.grade)
+        np.testing.assert_array_equal(pile["deposit_drop"], stacked.stacking.drop)
         np.testing.assert_array_equal(pile["z_end"], stacked.stacking.z)
     columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
     assert columns["stacked_t"][-1] == pytest.approx(2000.0, rel=1e-6)
@@ -102,6 +103,21 @@ def test_the_run_directory_keeps_the_layers_the_deposits_and_the_grade_in_time(s
     assert metrics["stacking"]["layers"] == 4
     assert (tmp_path / "run" / "stacking.png").stat().st_size > 10_000
     assert "stacked 2,000.0 t in 4 chevron layers" in summary_table(metrics)
+
+
+def test_the_stream_falls_the_planned_drop_or_more_onto_the_pile_under_it(stacked):
+    """Each deposit's fall, from the discharge point down to the pile under it as the deposit
+    begins: at least the planned `drop` (the head is held that far above the crest the layer will
+    reach), less the tracking error; more while the boom cannot luff lower, over the first layers."""
+    drop, metrics = stacked.stacking.drop, stacked.metrics["stacking"]
+    assert len(drop) == metrics["deposits"]
+    assert drop.min() >= 2.0 - 0.3  # m: the scene's drop, less the PID's tracking of the head
+    assert metrics["drop_min_m"] == drop.min() and metrics["drop_mean_m"] == pytest.approx(drop.mean())
+    machine = Machine(stacked.scene.machine.mjcf)
+    g = machine.geometry  # the lowest the head luffs, over the bare yard: the first deposits' fall
+    lowest = g.pivot_height + g.boom_length * np.sin(g.boom_angle0 + machine.envelope[2, 0])
+    assert drop[0] == pytest.approx(lowest + 0.5, abs=0.3)
+    assert "the stream fell " in summary_table(stacked.metrics)
 
 
 def test_the_plan_holds_the_drop_above_each_crest_and_luffs_up_between_passes():

@@ -70,7 +70,9 @@ def stacking_line(stacking: dict) -> str:
     return (f"stacked {stacking['tonnes_in_t']:,.1f} t in {pattern_text(stacking['pattern'], stacking['layers'])} "
             f"({stacking['deposits']} deposits): crest {stacking['crest_height_m']:.2f} m (target "
             f"{stacking['target_height_m']:.2f} m); grade in {stacking['grade_in_mean']:.3f} ± "
-            f"{stacking['grade_in_sd']:.3f} {name}; the pile holds {stacking['pile_t']:,.1f} t "
+            f"{stacking['grade_in_sd']:.3f} {name}; the stream fell {stacking['drop_min_m']:.1f}-"
+            f"{stacking['drop_max_m']:.1f} m, {stacking['drop_mean_m']:.1f} m on average ({stacking['drop_target_m']:g} m "
+            f"planned above each layer's crest); the pile holds {stacking['pile_t']:,.1f} t "
             f"(balance {stacking['balance_relative']:.1e})")
 
 

@@ -44,6 +44,16 @@ def footprint(grid: LayeredPile | Surface, x: float, y: float) -> np.ndarray:
     return weights
 
 
+def height_under(grid: LayeredPile | Surface, x: float, y: float) -> float:
+    """m: the pile's height at (x, y), bilinear between the four cells around it (the deposit's
+    own weights). Raises ValueError if the point lies outside the grid's lines."""
+    ix, fx = _cell(grid.x, x, "x")
+    iy, fy = _cell(grid.y, y, "y")
+    z = grid.z
+    return float((1 - fy) * ((1 - fx) * z[iy, ix] + fx * z[iy, ix + 1])
+                 + fy * ((1 - fx) * z[iy + 1, ix] + fx * z[iy + 1, ix + 1]))
+
+
 def discharge(pile: LayeredPile, x: float, y: float, rate: float, period: float, grade: float,
               material: Material, tolerance: float = DEFAULT_TOLERANCE,
               max_rounds: int = DEFAULT_MAX_ROUNDS) -> Deposited:

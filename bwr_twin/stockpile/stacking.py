@@ -21,7 +21,7 @@ from bwr_twin.config.scene import GradeSection, Scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.patterns import equivalent_layers
 from bwr_twin.planning.stacking import StackingPlan
-from bwr_twin.stockpile.deposition import discharge
+from bwr_twin.stockpile.deposition import discharge, height_under
 from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade, tonne_weighted
 from bwr_twin.stockpile.history import PileFrames, PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
@@ -37,7 +37,8 @@ class StackingRecord:
 
     Attributes:
         t, grade, tonnes: (deposits,) s each deposit began, the grade it came at, t it laid;
-        point: (deposits, 2) world x, y (m) where it landed.
+        point: (deposits, 2) world x, y (m) where it landed; drop (deposits,) m it fell, from the
+            discharge point down to the pile under it as it began.
         x, y: the pile's grid lines (m); z: (ny, nx) heights at the end (m);
         thickness, layer_grade: (ny, nx, max_layers) its layers from the floor up; count (ny, nx).
         grade_name: what the grade is ("Fe %"); bulk_density kg/m^3; layers what the pattern's
@@ -50,6 +51,7 @@ class StackingRecord:
     grade: np.ndarray
     tonnes: np.ndarray
     point: np.ndarray
+    drop: np.ndarray
     x: np.ndarray
     y: np.ndarray
     z: np.ndarray
@@ -76,7 +78,7 @@ class StackingRecord:
         history = self.history.arrays() if self.history is not None else {}  # its grade's name and band are these
         return {**dict(x=self.x, y=self.y, z_start=np.zeros_like(self.z), z_end=self.z, layer_thickness=self.thickness,
                        layer_grade=self.layer_grade, layer_count=self.count, deposit_t=self.t,
-                       deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point,
+                       deposit_grade=self.grade, deposit_tonnes=self.tonnes, deposit_point=self.point, deposit_drop=self.drop,
                        bulk_density=self.bulk_density, grade_name=self.grade_name, layers=self.layers,
                        equivalent_layers=self.equivalent_layers, pattern=self.pattern,
                        **({"grade_band": np.array(self.band)} if self.band is not None else {})), **history}
@@ -98,7 +100,7 @@ class Stacking:
         self.every = round(section.deposit_period / period)  # control periods between deposits
         self.duration = duration
         self.streams = [grade_stream(section.grade, section.deposit_period, scene.simulation.seed) for scene in scenes]
-        self.deposits: list[list[tuple[float, float, float, float, float]]] = [[] for _ in scenes]
+        self.deposits: list[list[tuple[float, ...]]] = [[] for _ in scenes]  # (t, grade, tonnes, x, y, drop)
         self.unconverged = np.zeros(len(scenes), dtype=np.int64)  # relaxations that ran out of rounds
         self._frame_every = frame_every
         self._frames = (PileFrames([pile.z for pile in self.piles], [pile.top_grade() for pile in self.piles])
@@ -117,35 +119,36 @@ class Stacking:
         for run in range(len(self.piles)) if runs is None else runs.tolist():
             grade = float(self.streams[run].at(start))
             x, y = float(cp[run, 0]), float(cp[run, 1])
+            drop = float(cp[run, 2]) - height_under(self.piles[run], x, y)
             laid = discharge(self.piles[run], x, y, self.section.rate, span, grade, self.material,
                              self.talus.tolerance)
             self.unconverged[run] += not laid.relaxed.converged
-            self.deposits[run].append((start, grade, laid.tonnes, x, y))
+            self.deposits[run].append((start, grade, laid.tonnes, x, y, drop))
         last = start + span >= self.duration
         if self._frames is not None and (k % self._frame_every < self.every or last):  # the last, so the replay ends on the pile
             self._frames.keep(start, [pile.z for pile in self.piles], [pile.top_grade() for pile in self.piles])
 
     def record(self, run: int) -> StackingRecord:
         pile = self.piles[run]
-        t, grade, tonnes, x, y = self._deposits(run)
+        t, grade, tonnes, x, y, drop = self._deposits(run)
         section = self.section
         history = (self._frames.history(run, pile.x, pile.y, np.zeros_like(pile.z), section.grade.name,
                                         section.grade.band) if self._frames is not None else None)
-        return StackingRecord(t, grade, tonnes, np.column_stack([x, y]), pile.x, pile.y, pile.z.copy(),
+        return StackingRecord(t, grade, tonnes, np.column_stack([x, y]), drop, pile.x, pile.y, pile.z.copy(),
                               pile.thickness.copy(), pile.grade.copy(), pile.count.copy(), section.grade.name,
                               section.bulk_density, section.layers, self.equivalent_layers, section.pattern,
                               section.grade.band, history)
 
     def _deposits(self, run: int) -> tuple[np.ndarray, ...]:
-        """(deposits,) times, grades, tonnes, x and y of the run's deposits."""
-        rows = np.array(self.deposits[run], dtype=float).reshape(-1, 5)
+        """(deposits,) times, grades, tonnes, x, y and drops of the run's deposits."""
+        rows = np.array(self.deposits[run], dtype=float).reshape(-1, 6)
         return tuple(rows.T)
 
     def metrics(self, run: int) -> dict:
         """metrics.json's `stacking` object (output contract): what came in and what the pile
         holds, their balances, the grade's spread, and the pile's shape."""
         pile, material = self.piles[run], self.material
-        t, grade, tonnes, _, _ = self._deposits(run)
+        t, grade, tonnes, _, _, drop = self._deposits(run)
         tonnes_in = float(tonnes.sum())
         grade_tonnes_in = float(np.sum(tonnes * grade))
         held = material.tonnes(pile.volume())
@@ -168,6 +171,10 @@ class Stacking:
             "crest_height_m": float(pile.z.max()),
             "target_height_m": self.plan.height,
             "pass_speed_m/s": self.plan.speed,
+            # m the stream fell onto the pile: the planned `drop` where the pile stands as targeted
+            "drop_target_m": self.section.drop,
+            **{f"drop_{name}_m": float(f(drop)) if len(drop) else float("nan")
+               for name, f in (("min", np.min), ("mean", np.mean), ("max", np.max))},
             "slope_excess_m": self.talus.excess(pile.z),
             "relaxations_unconverged": int(self.unconverged[run]),
             "layers_per_column_max": int(pile.count.max()),
