@@ -466,5 +466,9 @@ def test_a_stacking_replay_colours_its_pile_by_grade(browser):
             while changed_pixels(before, after := page.screenshot(clip=scene, timeout=WAIT_MS)) < GRADE_REPAINTED:
                 assert time.monotonic() < deadline, "colouring the pile by grade changed nothing in the scene"
             (ARTIFACTS / "replay_stack_grade.png").write_bytes(after)
+            # The grade stacked is charted beside the errors: uPlot drew it with its points.
+            titles = page.evaluate("() => Object.values(window.__viserTestpoints.uplots).map("
+                                   "u => [u.chart.root.querySelector('.u-title')?.textContent, u.chart.data[0].length])")
+            assert any(title == "Grade stacked, as it arrived" and points > 2 for title, points in titles), titles
         finally:
             page.close()

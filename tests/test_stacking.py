@@ -16,6 +16,7 @@ from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.stacking import plan_stacking
+from bwr_twin.replay.charts import charts
 from bwr_twin.results.rundir import read_timeseries, write_run
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
@@ -270,6 +271,27 @@ def test_the_replay_colours_the_pile_by_the_grade_of_its_top_layer(grown):
         assert not pile._grade_root.visible and panel.pile_colour.value == "ore"
 
 
+def test_the_replay_charts_the_grade_stacked_and_the_grade_reclaimed(stacked, reclaimed, tmp_path):
+    """The grade the stream brought, and the grade that passed the belt scale from the first
+    discharge on (a reclaim's is NaN before: a chart of the known part alone), from a result and
+    from its run directory alike."""
+    from bwr_twin.replay import Recording
+
+    result, _ = reclaimed
+    write_run(result, tmp_path / "blend", plots=False)
+    for recording in (Recording.from_result(result), Recording.from_run_dir(tmp_path / "blend")):
+        (chart,) = [chart for chart in charts(recording) if chart.title.startswith("Grade")]
+        assert chart.title == "Grade reclaimed, at the belt scale" and recording.grade.name == "Fe %"
+        (line,) = chart.lines
+        assert np.isfinite(line.values).all() and chart.time[0] >= result.reclaim.grade_out["t"][0] - 1.0
+        out = result.reclaim.grade_out["grade"]
+        assert out.min() <= line.values.min() and line.values.max() <= out.max()
+    (chart,) = [chart for chart in charts(Recording.from_result(stacked)) if chart.title.startswith("Grade")]
+    assert chart.title == "Grade stacked, as it arrived"
+    np.testing.assert_allclose(chart.lines[0].values, np.interp(chart.time, stacked.time,
+                                                                stacked.stacking.series(stacked.time)[0]))
+
+
 def test_a_reclaim_of_a_plain_pile_keeps_no_grade(tmp_path):
     """A windrow has no layers: its pile.npz holds the heights and their frames alone, as before,
     and its replay has no pile colour to choose."""
@@ -283,7 +305,8 @@ def test_a_reclaim_of_a_plain_pile_keeps_no_grade(tmp_path):
         assert sorted(pile.files) == sorted(["x", "y", "z_start", "z_end", "frame_time", "frame_offsets",
                                              "frame_cells", "frame_heights"])
     recording = Recording.from_run_dir(tmp_path / "dig")
-    assert recording.pile.grade_start is None and recording.pile.grades is None
+    assert recording.pile.grade_start is None and recording.pile.grades is None and recording.grade is None
+    assert not any("Grade" in chart.title for chart in charts(recording))
     with ReplayServer(recording, port=0) as server:
         assert server.view.grade_scale is None and server.player.panel.pile_colour is None
 

@@ -1,5 +1,5 @@
 """Charts of the runs a replay shows: position and velocity error, the reclaim rate (with a
-stockpile) and the joint trajectories, as uPlot charts for the live page (and drawn again by
+stockpile), the grade stacked or reclaimed (on a pile with grade) and the joint trajectories, as uPlot charts for the live page (and drawn again by
 bwr_twin.replay.export_charts for the HTML export).
 
 One run's charts hold its three axes in their colours (travel on the left scale, slew and luff in
@@ -134,7 +134,29 @@ def _one_run(recording: Recording) -> list[Chart]:
     if recording.reclaim_rate is not None:
         rate = Line(_line("rate [t/h]", AXIS_COLOURS[0], "m"), recording.reclaim_rate[samples])
         out.append(_two_scales("Reclaim rate", time, [rate], left="rate [t/h]", right=""))
+    if recording.grade is not None:
+        out += _grade_chart([recording], ["grade"], recording.plan.time[samples])
     return out + [_two_scales("Joint trajectories", time, trajectory, left="travel [m]", right="slew, luff [deg]")]
+
+
+def _grade_chart(recordings: Sequence[Recording], names: Sequence[str], time: np.ndarray) -> list[Chart]:
+    """The grade each run stacked or reclaimed, over the times all of them have one (a reclaim's
+    from the first discharge past the belt scale: uPlot draws no gaps from NaN); none without."""
+    graded = [(k, r) for k, r in enumerate(recordings) if r.grade is not None]
+    if not graded:
+        return []
+    series = [(k, np.interp(time, r.plan.time, r.grade.values)) for k, r in graded]  # NaN where either side is
+    known = np.all([np.isfinite(values) for _, values in series], axis=0)
+    if known.sum() < 2:
+        return []
+    first = graded[0][1].grade
+    unit = first.name
+    colours = [AXIS_COLOURS[0]] if len(recordings) == 1 else [hex_colour(run_colour(k)) for k, _ in graded]
+    lines = [Line(_line(f"{names[k]} [{unit}]", colour, "y"), values[known], run=None if len(recordings) == 1 else k)
+             for (k, values), colour in zip(series, colours)]
+    title = "Grade stacked, as it arrived" if first.kind == "stacked" else "Grade reclaimed, at the belt scale"
+    return [Chart(title=title, time=time[known], lines=tuple(lines), scales={"x": {"time": False}, "y": {"auto": True}},
+                  axes=({"label": "t [s]"}, {"scale": "y", "label": unit}), fitted=True)]
 
 
 def chart_time(recordings: Sequence[Recording]) -> np.ndarray:
@@ -174,6 +196,7 @@ def _several_runs(recordings: list[Recording], names: list[str]) -> list[Chart]:
         lines = [Line(_line(f"{names[k]} [t/h]", hex_colour(run_colour(k)), "y"), at(r, r.reclaim_rate), run=k)
                  for k, r in rates]
         out.append(fitted("Reclaim rate", "rate [t/h]", lines))
+    out += _grade_chart(recordings, names, time)
     for j, axis in enumerate(AXES):
         desired = Line(_line(f"desired [{UNITS[j]}]", hex_colour(DESIRED_COLOUR), "y", dash=DESIRED_DASH),
                        at(recordings[0], recordings[0].plan.q_desired[:, j] * DISPLAY[j]))

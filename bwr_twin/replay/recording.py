@@ -167,6 +167,26 @@ class Instant:
 
 
 @dataclass(frozen=True)
+class GradeSeries:
+    """The grade a run charts: what was stacked as it arrived ("stacked"), or what left a stacked
+    pile as the belt scale passed it ("reclaimed"); `values` (n,) at the record times, NaN before
+    the first discharge passed."""
+
+    name: str  # what the grade is: "Fe %"
+    kind: str  # "stacked" or "reclaimed"
+    values: np.ndarray
+
+    @classmethod
+    def of(cls, columns: dict[str, np.ndarray]) -> GradeSeries | None:
+        """From a run's time-series columns (docs/contracts.md); None for a run without grade."""
+        for prefix, kind in (("stacking_grade_in_", "stacked"), ("grade_out_", "reclaimed")):
+            for column, values in columns.items():
+                if column.startswith(prefix):
+                    return cls(column.removeprefix(prefix), kind, np.asarray(values, dtype=float))
+        return None
+
+
+@dataclass(frozen=True)
 class Recording:
     """A finished run: its plan plus what the machine actually did."""
 
@@ -179,6 +199,7 @@ class Recording:
     controller: str = ""  # the controller's type, as its scene names it: "fuzzy_model", "pid", ...
     scans: Scans | None = None  # the run's laser scans, if its machine scanned the pile
     neighbour_q: np.ndarray | None = None  # (n, 3) a second machine's joints, if the scene has one
+    grade: GradeSeries | None = None  # the grade stacked or reclaimed, for a run of a pile with grade
 
     @property
     def q_error(self) -> np.ndarray:
@@ -312,7 +333,8 @@ class Recording:
         return cls(plan, q_actual, joints("qd_actual"), cp("actual"),
                    reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile,
                    controller=str((scene.get("controller") or {}).get("type", "")), scans=scans,
-                   neighbour_q=joints("neighbour_q_actual") if neighbour is not None else None)
+                   neighbour_q=joints("neighbour_q_actual") if neighbour is not None else None,
+                   grade=GradeSeries.of(columns))
 
 
 def read_recorded(path: Path) -> dict[str, np.ndarray]:
