@@ -38,17 +38,28 @@ REFERENCE_LAYERS = 32  # heavy_chevron_stack's: its rate keeps their passes with
 FULL_SLICE = 0.5  # a slice holding at least this share of the fullest one's tonnes: the pile's body
 
 
+def study_parser(description: str, seeds: list[int], out: str) -> argparse.ArgumentParser:
+    """The options the blend studies share: the seeds, the output folder and --redraw."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--seeds", type=int, nargs="+", default=seeds)
+    parser.add_argument("--out", type=Path, default=Path(out))
+    parser.add_argument("--redraw", action="store_true", help="the table and figure again from the numbers in "
+                        "--out, without running")
+    return parser
+
+
+def saved_numbers(args: argparse.Namespace, name: str) -> tuple[Path, dict | None]:
+    """The study's numbers file in --out, and what it holds if --redraw asks for it."""
+    numbers = args.out / name
+    return numbers, json.loads(numbers.read_text()) if args.redraw else None
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = study_parser(__doc__.splitlines()[0], [1, 2, 3, 4], "out/blend_layers")
     parser.add_argument("--layers", type=int, nargs="+", default=[16, 32, 64, 128])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4])
-    parser.add_argument("--out", type=Path, default=Path("out/blend_layers"))
-    parser.add_argument("--redraw", action="store_true", help="the table and figure again from --out's "
-                        "blend_layers.json, without running")
     args = parser.parse_args()
-    numbers = args.out / "blend_layers.json"
-    if args.redraw:
-        saved = json.loads(numbers.read_text())
+    numbers, saved = saved_numbers(args, "blend_layers.json")
+    if saved is not None:
         mean, runs = saved["stream_mean"], saved["runs"]
     else:
         stacking = load_scene(find_scene("heavy_chevron_stack"))

@@ -15,14 +15,12 @@ blend_patterns.json and draws them into blend_patterns.png (the figure in docs/b
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import time
-from pathlib import Path
 
 import numpy as np
-from blend_layers import pm, pooled, stack_and_reclaim
+from blend_layers import pm, pooled, saved_numbers, stack_and_reclaim, study_parser
 from matplotlib.figure import Figure
 
 from bwr_twin.config.scene import load_scene
@@ -38,15 +36,9 @@ PATTERNS = {  # each within the rated 0.5 m/s travel at 10,000 t/h on 100 m (doc
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--out", type=Path, default=Path("out/blend_patterns"))
-    parser.add_argument("--redraw", action="store_true", help="the table and figure again from --out's "
-                        "blend_patterns.json, without running")
-    args = parser.parse_args()
-    numbers = args.out / "blend_patterns.json"
-    if args.redraw:
-        saved = json.loads(numbers.read_text())
+    args = study_parser(__doc__.splitlines()[0], [1, 2], "out/blend_patterns").parse_args()
+    numbers, saved = saved_numbers(args, "blend_patterns.json")
+    if saved is not None:
         mean, rows = saved["stream_mean"], saved["rows"]
     else:
         mean = load_scene(find_scene("heavy_chevron_stack")).stacking.grade.mean  # the stream's own mean
