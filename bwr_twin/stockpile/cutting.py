@@ -9,9 +9,9 @@ in one period and the rate would be a train of spikes a cell apart; with flanks 
 wide, cells are lowered a little each period, and the same material is cut, a little earlier.
 The heights only ever fall, so the volume the pile loses is exactly the sum of the volumes cut.
 
-A Cutter given the material's talus heights (a scene's `stockpile.angle_of_repose`) then lets the
-faces it cut slump (bwr_twin.stockpile.relaxation), beginning from the cells it lowered: the heights
-still only move material, so the volume the pile loses is still what was cut. The slumped
+A Cutter given the material's angle of repose (a scene's `stockpile.angle_of_repose`) then lets
+the faces it cut slump (`slump`, bwr_twin.stockpile.relaxation), beginning from the cells it
+lowered: the slump only moves material, so the volume the pile loses is still what was cut. The slumped
 material lands where the wheel is and is cut in the periods that follow, as a real face falls
 into the wheel.
 
