@@ -31,8 +31,7 @@ from bwr_twin.results.rundir import PILE_FILE, write_run
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.lockstep import simulate
 from bwr_twin.stockpile import blending
-from bwr_twin.stockpile.grade import tonne_weighted
-from bwr_twin.stockpile.reclaim import lots, rms_from
+from bwr_twin.stockpile.grade import lots, rms_from, tonne_weighted
 
 REFERENCE_LAYERS = 32  # heavy_chevron_stack's: its rate keeps their passes within the rated travel speed
 FULL_SLICE = 0.5  # a slice holding at least this share of the fullest one's tonnes: the pile's body

@@ -34,24 +34,17 @@ class Deposited:
 def footprint(grid: LayeredPile | Surface, x: float, y: float) -> np.ndarray:
     """(ny, nx) bilinear weights, summing to one, of the four cells of `grid` (its lines x, y)
     around the point (x, y) m. Raises ValueError if the point lies outside the grid's lines."""
-    ix, fx = _cell(grid.x, x, "x")
-    iy, fy = _cell(grid.y, y, "y")
+    iy, ix, corners = _corners(grid, x, y)
     weights = np.zeros((len(grid.y), len(grid.x)))
-    weights[iy, ix] = (1 - fx) * (1 - fy)
-    weights[iy, ix + 1] = fx * (1 - fy)
-    weights[iy + 1, ix] = (1 - fx) * fy
-    weights[iy + 1, ix + 1] = fx * fy
+    weights[iy:iy + 2, ix:ix + 2] = corners
     return weights
 
 
 def height_under(grid: LayeredPile | Surface, x: float, y: float) -> float:
     """m: the pile's height at (x, y), bilinear between the four cells around it (the deposit's
     own weights). Raises ValueError if the point lies outside the grid's lines."""
-    ix, fx = _cell(grid.x, x, "x")
-    iy, fy = _cell(grid.y, y, "y")
-    z = grid.z
-    return float((1 - fy) * ((1 - fx) * z[iy, ix] + fx * z[iy, ix + 1])
-                 + fy * ((1 - fx) * z[iy + 1, ix] + fx * z[iy + 1, ix + 1]))
+    iy, ix, corners = _corners(grid, x, y)
+    return float(np.sum(corners * grid.z[iy:iy + 2, ix:ix + 2]))
 
 
 def discharge(pile: LayeredPile, x: float, y: float, rate: float, period: float, grade: float,
@@ -66,6 +59,14 @@ def discharge(pile: LayeredPile, x: float, y: float, rate: float, period: float,
     pile.deposit(footprint(pile, x, y) * (volume / pile.cell_area), grade)
     talus = Talus.of(pile.spacing, material.angle_of_repose, tolerance)
     return Deposited(tonnes, volume, pile.relax(talus, max_rounds))
+
+
+def _corners(grid: LayeredPile | Surface, x: float, y: float) -> tuple[int, int, np.ndarray]:
+    """The row and column of the cell at or below and left of (x, y) m, and the (2, 2) bilinear
+    weights of it and its three neighbours above and right, summing to one."""
+    ix, fx = _cell(grid.x, x, "x")
+    iy, fy = _cell(grid.y, y, "y")
+    return iy, ix, np.array([[(1 - fx) * (1 - fy), fx * (1 - fy)], [(1 - fx) * fy, fx * fy]])
 
 
 def _cell(lines: np.ndarray, value: float, axis: str) -> tuple[int, float]:

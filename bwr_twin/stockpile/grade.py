@@ -25,7 +25,22 @@ def tonne_weighted(tonnes: np.ndarray, grade: np.ndarray) -> tuple[float, float]
     if not total > 0:
         return float("nan"), float("nan")
     mean = float(np.sum(tonnes * grade) / total)
-    return mean, float(np.sqrt(np.sum(tonnes * (grade - mean) ** 2) / total))
+    return mean, rms_from(tonnes, grade, mean)
+
+
+def rms_from(tonnes: np.ndarray, grade: np.ndarray, reference: float) -> float:
+    """The tonne-weighted root mean square of `grade` from `reference`: about the grade's own mean
+    its spread, about another the spread and the mean's offset together; NaN for no tonnes."""
+    total = float(np.sum(tonnes))
+    return float(np.sqrt(np.sum(tonnes * (grade - reference) ** 2) / total)) if total > 0 else float("nan")
+
+
+def lots(tonnes: np.ndarray, grade: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """The tonnes and the tonne-weighted grade of lots of `size` discharges in a row (a minute's,
+    as a sampler cuts lots); the discharges after the last whole lot are left out."""
+    count = len(tonnes) // size
+    mass = tonnes[:count * size].reshape(count, size).sum(axis=1)
+    return mass, (tonnes * grade)[:count * size].reshape(count, size).sum(axis=1) / mass
 
 
 class Ar1Grade:

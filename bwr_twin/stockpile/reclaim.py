@@ -23,35 +23,13 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.stockpile.conveyor import Conveyor
 from bwr_twin.stockpile.cutting import Cut, Cutter
 from bwr_twin.stockpile.digging import DiggingLoad
-from bwr_twin.stockpile.grade import tonne_weighted
+from bwr_twin.stockpile.grade import lots, rms_from, tonne_weighted
 from bwr_twin.stockpile.history import PileFrames
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.stacked import read_stacked
 from bwr_twin.stockpile.surface import Surface, is_stacked_pile
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
-
-
-def lots(tonnes: np.ndarray, grade: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """The tonnes and the tonne-weighted grade of lots of `size` discharges in a row (a minute's,
-    as a sampler cuts lots); the discharges after the last whole lot are left out."""
-    count = len(tonnes) // size
-    mass = tonnes[:count * size].reshape(count, size).sum(axis=1)
-    return mass, (tonnes * grade)[:count * size].reshape(count, size).sum(axis=1) / mass
-
-
-def lot_sd(tonnes: np.ndarray, grade: np.ndarray, size: int) -> float:
-    """The tonne-weighted spread of the grades of `lots` of `size` discharges about their own
-    mean; NaN for fewer than two lots."""
-    mass, means = lots(tonnes, grade, size)
-    return tonne_weighted(mass, means)[1] if len(mass) >= 2 else float("nan")
-
-
-def rms_from(tonnes: np.ndarray, grade: np.ndarray, reference: float) -> float:
-    """The tonne-weighted root mean square of `grade` from `reference`: the spread and the offset
-    of the mean together; NaN for no tonnes."""
-    total = float(np.sum(tonnes))
-    return float(np.sqrt(np.sum(tonnes * (grade - reference) ** 2) / total)) if total > 0 else float("nan")
 
 
 def _longest_outside(t: np.ndarray, grade: np.ndarray, band: tuple[float, float] | None, interval: float) -> float | None:
@@ -171,7 +149,7 @@ class Reclaim:
         tonnes = volume * density
         out = float(tonnes.sum())
         mean, sd = tonne_weighted(tonnes, grade)
-        minute = max(round(self.wheel.discharges_per_minute), 1)  # a minute's discharges: a lot
+        lot_tonnes, lot_grade = lots(tonnes, grade, max(round(self.wheel.discharges_per_minute), 1))  # a minute's
         start = stacked.pile
         held = self.layers[run]
         left = (held.volume() + conveyor.carried[run] + conveyor.spilled[run] + conveyor.bucket[run])
@@ -185,8 +163,8 @@ class Reclaim:
             "grade_in_sd": stacked.grade_in_sd,
             "grade_out_mean": mean,
             "grade_out_sd": sd,
-            "grade_out_sd_minute": lot_sd(tonnes, grade, minute),
-            "grade_out_rms_minute": rms_from(*lots(tonnes, grade, minute), stacked.grade_in_mean),
+            "grade_out_sd_minute": tonne_weighted(lot_tonnes, lot_grade)[1] if len(lot_tonnes) >= 2 else float("nan"),
+            "grade_out_rms_minute": rms_from(lot_tonnes, lot_grade, stacked.grade_in_mean),
             "sd_ratio": sd / stacked.grade_in_sd if stacked.grade_in_sd > 0 else float("nan"),
             "pattern": stacked.pattern,
             "equivalent_layers": stacked.equivalent_layers,
