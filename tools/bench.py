@@ -12,6 +12,8 @@ each (the machine is shared and noisy), and prints the spread of the ratios besi
     floor ratio:        a lockstep of `--runs` paper runs (700 s) against its floor  (target <= 1.15)
     single-run ratio:   one paper run alone against one run's floor                   (target <= 3)
     bench-reclaim ratio: heavy_bench_reclaim alone against its floor                  (target <= 8)
+    cli ratio:          `python -m bwr_twin.run SCENE --no-plots`, start to exit, warm, against one
+                        run's floor: the paper run (target <= 3.5) and heavy_bench_reclaim (target <= 7)
     gym ratio:          a Gymnasium single-env step against one floor control period  (target <= 4)
     replay timeline:    s from the machine on screen to the timeline ready            (target <= 3 s)
 
@@ -22,7 +24,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -36,7 +40,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 from bwr_twin.sim.lockstep import Lockstep, simulate, simulate_lockstep
 
-FIGURES = ("floor", "single-run", "bench-reclaim", "gym", "replay")
+FIGURES = ("floor", "single-run", "bench-reclaim", "cli", "gym", "replay")
 
 
 def floor(scene, runs: int, threads: int, periods: int, q0: np.ndarray) -> float:
@@ -109,6 +113,27 @@ def bench_reclaim_figure(args) -> None:
     print(f"  heavy_bench_reclaim: {duration:.0f} s simulated in {best:.2f} s")
 
 
+def cli_figure(base, args) -> None:
+    """A run as an engineer starts it, a process from start to exit (imports, scene, model,
+    simulation, metrics and time series written; no figures), against the run's floor."""
+    for scene in (base, load_scene(find_scene("heavy_bench_reclaim"))):
+        result = simulate(scene)  # its length, and the numba caches warm
+        periods = round(result.metrics["run"]["duration"] / scene.simulation.control_period) + 1
+        q0 = Lockstep([scene], nthread=1, observe=False).tracking.start
+
+        def run(scene=scene) -> float:
+            with tempfile.TemporaryDirectory() as scratch:
+                command = [sys.executable, "-m", "bwr_twin.run", str(scene.path), "--out", f"{scratch}/run",
+                           "--no-plots"]
+                started = time.perf_counter()
+                subprocess.run(command, check=True, capture_output=True)
+                return time.perf_counter() - started
+
+        run()  # warm: the byte code and the kernels' caches
+        best, _ = compare(f"cli ({scene.path.stem})", run, lambda: floor(scene, 1, 1, periods, q0), args.repeat)
+        print(f"  python -m bwr_twin.run {scene.path.stem} --no-plots: {best:.2f} s")
+
+
 def gym_figure(base, args) -> None:
     import gymnasium
 
@@ -178,6 +203,8 @@ def main() -> None:
             single_figure(base, args)
         elif figure == "bench-reclaim":
             bench_reclaim_figure(args)
+        elif figure == "cli":
+            cli_figure(base, args)
         elif figure == "gym":
             gym_figure(base, args)
         else:

@@ -75,6 +75,11 @@ class Guard:
         self._fraction = [0.0] * runs  # ... and a fraction of one
         self.q, self.qd, self.qdd = (np.zeros((runs, 3)) for _ in range(3))
 
+    @property
+    def quick_stop(self) -> np.ndarray:
+        """(runs,) bool: the runs whose drives the interlock stops this period."""
+        return self.interlock.quick_stop
+
     def decide(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray, drive_speed: np.ndarray,
                known: np.ndarray, neighbour: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Period k's pace of every run, and the runs whose drives it quick-stops, from its

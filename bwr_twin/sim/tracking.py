@@ -6,7 +6,8 @@ its rate control trims the slew speed from what the run's reclaim measured in th
 ended, its stop condition ends the plan, and the lockstep ends once every run rests.
 
 Both give the current period's reference (`now`), where each run stands in its plan (`phase`),
-move on a period (`advance`) and say where each run began each segment (`waypoints`).
+move on a period (`advance`) and say where each run began each segment (`waypoints`). A bench
+plan re-plans itself as its survey of the pile ends; the loop only sees `samples` change.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.outcome import PlanOutcome
 from bwr_twin.sim.plugins import call, checked, construct, describe
+from bwr_twin.stockpile.reclaim import Reclaim
 
 
 class PathTracking:
@@ -37,11 +39,14 @@ class PathTracking:
         rows: the path's (samples, 3) positions, velocities and accelerations.
         samples, time: the control periods and their (samples,) times (s).
         start: (3,) the joint values the runs start at.
+        paced: None, or an interlock's guard (bwr_twin.collision.guard) whose (runs, 3)
+            reference follows the path at the pace it decides (`pace_by`).
     """
 
     shared = True
     plan = None
     survey_end = None
+    paced = None
 
     def __init__(self, scene: Scene, machine: Machine, period: float):
         """Raises UnreachableError or EnvelopeError, naming the scene, for a path the machine cannot follow."""
@@ -57,17 +62,25 @@ class PathTracking:
         self.rows = (reference.q_desired, reference.qd_desired, reference.qdd_desired)
         self.samples, self.time, self.start = reference.samples, reference.time, reference.start
 
+    def pace_by(self, guard) -> None:
+        """Follow the path at the pace `guard` decides: each run's own reference from then on."""
+        self.paced = guard
+
+    @property
+    def own_rows(self) -> bool:
+        """Whether the runs' references differ, so that the record keeps each run's."""
+        return self.paced is not None
+
     def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        r = self._reference
+        r = self._reference if self.paced is None else self.paced
         return r.q, r.qd, r.qdd
 
     def phase(self) -> None:
         return None
 
-    def advance(self, k: int, reclaim, phase: None) -> int | None:
-        """On to period k; a path never ends early (None)."""
+    def advance(self, k: int, phase: None) -> None:
+        """On to period k; a path never ends early."""
         self._reference.advance()
-        return None
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)
@@ -75,10 +88,10 @@ class PathTracking:
     def run_metrics(self, run: int) -> dict:
         return {}
 
-    def reclaim_metrics(self, run: int, density: float) -> dict:
+    def reclaim_metrics(self, run: int) -> dict:
         return {}
 
-    def finish(self, reclaim) -> None:
+    def finish(self) -> None:
         pass
 
 
@@ -107,7 +120,8 @@ class BenchTracking:
 
     Attributes:
         plan: the bench plan (bwr_twin.planning.plan.BenchPlan).
-        samples, time: the most control periods the plan may take, and their times (s).
+        samples, time: the most control periods the plan may take (once every run rests, those
+            it took), and their times (s).
         start: (3,) the plan's start.
         external_trim: None while the scene's rate control trims the slew speed; else the trim
             every run takes from the next period on, set by a rate loop outside the twin (the
@@ -117,18 +131,21 @@ class BenchTracking:
     """
 
     shared = False
+    own_rows = True
     external_trim: float | None = None
     pace: np.ndarray | None = None  # an interlock's (runs,) pace along the plan, from the next period on
 
-    def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float, *,
+    def __init__(self, scenes: Sequence[Scene], machine: Machine, period: float, reclaim: Reclaim, *,
                  known_pile: Callable[[], np.ndarray] | None = None, instruments: RateInstruments | None = None):
-        """`known_pile()`, if given, is the pile the runs know from their scans, (ny, nx) m: the
+        """`reclaim`: the runs' piles and belts, whose rates the rate control and the stop
+        condition read. `known_pile()`, if given, is the pile the runs know from their scans, (ny, nx) m: the
         benches are planned on it as the [reclaim.survey] ends, not on the true pile in advance.
         Runs of one lockstep share their scene and seed, so their scans and plans are the same.
         `instruments`, if given, are what the rate control reads instead of the true rate and
         power. Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
         scene = scenes[0]
         self._scene, self._machine, self._known_pile, self.instruments = scene, machine, known_pile, instruments
+        self._reclaim = reclaim
         survey = survey_plan(scene)
         # The control period at which the survey ends and the benches begin; None without a survey.
         self.survey_end = None if survey is None else round(survey.nominal_duration / period)
@@ -164,13 +181,13 @@ class BenchTracking:
     def phase(self) -> Phase:
         return self._reference.phase()
 
-    def advance(self, k: int, reclaim, phase: Phase) -> int | None:
+    def advance(self, k: int, phase: Phase) -> None:
         """On to period k from the period just ended, where the runs stood at `phase`: the rate
-        control's trims from what each run's reclaim measured in it, the stop condition; once
-        every run rests, the periods the lockstep takes in all (one more at rest, measured and
-        recorded), else None. As a survey on the scanned pile ends, the benches are planned and
-        `samples` grows to the most they may take."""
-        reference = self._reference
+        control's trims from what each run's reclaim measured in it, the stop condition. Once
+        every run rests, `samples` shrinks to the periods the lockstep takes in all (one more at
+        rest, measured and recorded). As a survey on the scanned pile ends, the benches are
+        planned and `samples` grows to the most they may take."""
+        reference, reclaim = self._reference, self._reclaim
         if not self.surveying:
             self.outcome.add(k - 1, phase, reclaim)
         time = (k - 1) * self._period
@@ -194,11 +211,11 @@ class BenchTracking:
             stopping = reclaim.carried_tonnes() >= stop.tonnes
         reference.advance(trim, stopping, self.pace)
         if not reference.finished.all():
-            return None
+            return
         if self.surveying:
             self._plan_benches()
-            return None
-        return k + 1
+            return
+        self.samples = min(self.samples, k + 1)
 
     def _plan_benches(self) -> None:
         """The survey has ended: the benches planned on the pile the runs know, followed from here."""
@@ -211,13 +228,13 @@ class BenchTracking:
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)
 
-    def reclaim_metrics(self, run: int, density: float) -> dict:
-        """How the run carried out its plan (bwr_twin.sim.outcome); `density` kg/m^3."""
-        return self.outcome.metrics(run, density)
+    def reclaim_metrics(self, run: int) -> dict:
+        """How the run carried out its plan (bwr_twin.sim.outcome)."""
+        return self.outcome.metrics(run, float(self._reclaim.density[run]))
 
-    def finish(self, reclaim) -> None:
+    def finish(self) -> None:
         """The runs' reclaim has ended: its last discharge counts to their last bench."""
-        self.outcome.discharged(reclaim.conveyor.discharged)
+        self.outcome.discharged(self._reclaim.conveyor.discharged)
 
     def run_metrics(self, run: int) -> dict:
         """Where the run began each segment of its plan, and which, for a replay."""

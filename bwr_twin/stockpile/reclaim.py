@@ -86,6 +86,16 @@ class Reclaim:
         self._frame_every = frame_every
         self._frames = PileFrames(self.cutter.heights, self._top_grades()) if frame_every else None
 
+    @property
+    def heights(self) -> np.ndarray:
+        """(runs, ny, nx) m: each run's pile as dug so far."""
+        return self.cutter.heights
+
+    @property
+    def dug(self) -> np.ndarray:
+        """(runs,) m^3 each run's wheel has dug so far."""
+        return self.conveyor.dug
+
     def step(self, k: int, q: np.ndarray, runs: np.ndarray | None) -> np.ndarray | None:
         """Cut period k's material with the wheels where the true joint values q (runs, 3) put
         them; returns the (runs, 3) digging load on the joints (N, N m) to hold over the period,
