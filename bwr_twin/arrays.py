@@ -82,7 +82,8 @@ def load_npz(path: str | Path, spec: Mapping[str, Member], *, what: str, error: 
                 raise error(f"{what}: has no array '{absent[0]}'{missing}")
             wanted = [key for key in spec if key in members]
             headers = {key: _header(archive, members[key], key, spec[key], what, error) for key in wanted}
-            return {key: _data(archive, raw, members[key], headers[key], mmap, key, what, error) for key in wanted}
+            return {key: _data(archive, raw, members[key], headers[key], mmap, key, what, error)
+                    for key in wanted}
     except FileNotFoundError:
         raise error(f"{what}: no such file") from None
     except IsADirectoryError:
@@ -117,7 +118,7 @@ def _header(archive: zipfile.ZipFile, info: zipfile.ZipInfo, key: str, member: M
                     f"it must hold {_wanted(member.kinds)}")
     if member.shape is not None and (len(shape) != len(member.shape) or any(
             want is not None and got != want for got, want in zip(shape, member.shape))):
-        wanted = "(" + ", ".join("n" if n is None else str(n) for n in member.shape) + ("," if len(member.shape) == 1 else "") + ")"
+        wanted = str(tuple("n" if n is None else n for n in member.shape)).replace("'", "")
         raise error(f"{what}: array '{key}' has the shape {shape}; it must be {wanted}")
     size = math.prod(shape) * dtype.itemsize
     if size > member.max_bytes:
@@ -172,7 +173,8 @@ def check_within(what: str, key: str, array: np.ndarray, low: float, high: float
     """`error` unless every value of the array `key` lies in [low, high]; `limit` says why."""
     at = first_false((array >= low) & (array <= high))
     if at is not None:
-        raise error(f"{what}: array '{key}' holds {array[at]:g} at {list(at)}, outside [{low:g}, {high:g}] ({limit})")
+        raise error(f"{what}: array '{key}' holds {array[at]:g} at {list(at)}, outside [{low:g}, {high:g}] "
+                    f"({limit})")
 
 
 def check_index(what: str, key: str, array: np.ndarray, size: int, indexed: str,

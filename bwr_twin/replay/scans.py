@@ -45,7 +45,8 @@ _TIE = 1e-9  # s: a time within this of a scan's counts as at or after it (times
 # What the replay reads of scans.npz and survey.npz (bwr_twin.sensing.outputs). The hits are
 # memory-mapped where stored uncompressed, as the twin writes them; read, they may take 4 GiB.
 SCANS_SPEC = {"t": Member(shape=(None,)), "origin": Member(shape=(None, 3)),
-              "hits": Member("f", (None, None, 3), max_bytes=4 << 30), "scanner": Member("U", (None,), required=False)}
+              "hits": Member("f", (None, None, 3), max_bytes=4 << 30),
+              "scanner": Member("U", (None,), required=False)}
 SURVEY_SPEC = {"x": Member(shape=(None,)), "y": Member(shape=(None,)), "t_end": SCALAR,
                "t_plan": Member(shape=(), required=False)}
 
@@ -105,9 +106,10 @@ class Scans:
                 check_real(str(survey), key, known[key])
         if x is None or y is None or len(t) == 0:
             return None
-        if origin.shape != (len(t), 3) or len(hits) != len(t) or ("scanner" in arrays and len(arrays["scanner"]) != len(t)):
-            raise BwrError(f"{path}: hits {hits.shape}, origin {origin.shape} and scanner for {len(t)} scans; the twin "
-                           "writes (n, rays, 3), (n, 3) and (n,)")
+        scanner = arrays.get("scanner")
+        if origin.shape != (len(t), 3) or len(hits) != len(t) or (scanner is not None and len(scanner) != len(t)):
+            raise BwrError(f"{path}: hits {hits.shape}, origin {origin.shape} and scanner for {len(t)} scans; "
+                           "the twin writes (n, rays, 3), (n, 3) and (n,)")
         check_real(str(path), "t", t)
         return cls(np.asarray(t, dtype=float), np.asarray(origin, dtype=float), hits, arrays.get("scanner"),
                    np.asarray(x, dtype=float), np.asarray(y, dtype=float), plan_time, end_time)

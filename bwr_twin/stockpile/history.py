@@ -23,7 +23,8 @@ _FRAME, _FRAME_INDICES = Member(shape=(None,), required=False), Member("iu", (No
 SPEC = {"x": _LINE, "y": _LINE, "z_start": _GRID, "z_end": _GRID, "frame_time": _FRAME,
         "frame_offsets": _FRAME_INDICES, "frame_cells": _FRAME_INDICES, "frame_heights": _FRAME,
         "grade_start": Member(shape=(None, None), required=False), "frame_grades": _FRAME,
-        "grade_name": Member("U", (), TEXT.max_bytes, required=False), "grade_band": Member(shape=(2,), required=False),
+        "grade_name": Member("U", (), TEXT.max_bytes, required=False),
+        "grade_band": Member(shape=(2,), required=False),
         "layer_grade": Member(shape=(None, None, None), required=False),
         "layer_count": Member("iu", (None, None), required=False)}
 
@@ -115,9 +116,11 @@ def _check(arrays: dict[str, np.ndarray], what: str) -> None:
         check_real(what, key, arrays[key])
     for key in ("z_start", "z_end", "grade_start", "layer_count"):
         if key in arrays and arrays[key].shape != grid:
-            raise BwrError(f"{what}: array '{key}' has the shape {arrays[key].shape}; the grid lines x, y make it {grid}")
+            raise BwrError(f"{what}: array '{key}' has the shape {arrays[key].shape}; the grid lines x, y make it "
+                           f"{grid}")
     if "frame_time" in arrays:
-        frames = ("frame_offsets", "frame_cells", "frame_heights") + (("frame_grades",) if "grade_start" in arrays else ())
+        frames = ("frame_offsets", "frame_cells", "frame_heights")
+        frames += ("frame_grades",) if "grade_start" in arrays else ()
         absent = [key for key in frames if key not in arrays]
         if absent:
             raise BwrError(f"{what}: has 'frame_time' but no array '{absent[0]}'")

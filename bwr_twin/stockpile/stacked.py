@@ -119,10 +119,12 @@ def check_layers(arrays: dict[str, np.ndarray], where: str) -> None:
     grid = (len(y), len(x))
     for key, array in (("z_end", z), ("layer_count", count)):
         if array.shape != grid:
-            raise SceneError(f"{where}: array '{key}' has the shape {array.shape}; the grid lines x, y make it {grid}")
+            raise SceneError(f"{where}: array '{key}' has the shape {array.shape}; the grid lines x, y make it "
+                             f"{grid}")
     if thickness.shape[:2] != grid or grade.shape != thickness.shape or thickness.shape[2] < 2:
-        raise SceneError(f"{where}: arrays 'layer_thickness' {thickness.shape} and 'layer_grade' {grade.shape} must "
-                         f"both be (len(y), len(x), max_layers) = ({grid[0]}, {grid[1]}, max_layers), max_layers >= 2")
+        raise SceneError(f"{where}: arrays 'layer_thickness' {thickness.shape} and 'layer_grade' {grade.shape} "
+                         f"must both be (len(y), len(x), max_layers) = ({grid[0]}, {grid[1]}, max_layers), "
+                         "max_layers >= 2")
     room = thickness.shape[2]
     check_within(where, "layer_count", count, 0, room, f"a column holds 0 to the {room} layers it has room for",
                  SceneError)
@@ -142,8 +144,8 @@ def check_layers(arrays: dict[str, np.ndarray], where: str) -> None:
                          f"(to {HEIGHT_TOLERANCE:g} m)")
     tonnes, grades = arrays["deposit_tonnes"], arrays["deposit_grade"]
     if tonnes.shape != grades.shape:
-        raise SceneError(f"{where}: arrays 'deposit_tonnes' {tonnes.shape} and 'deposit_grade' {grades.shape} must "
-                         "hold one value a deposit each")
+        raise SceneError(f"{where}: arrays 'deposit_tonnes' {tonnes.shape} and 'deposit_grade' {grades.shape} "
+                         "must hold one value a deposit each")
     check_real(where, "deposit_grade", grades, SceneError)
     check_within(where, "deposit_tonnes", tonnes, 0, np.inf, "a deposit's tonnes are >= 0", SceneError)
     check_within(where, "bulk_density", arrays["bulk_density"], *BULK_DENSITY,
@@ -155,4 +157,5 @@ def check_layers(arrays: dict[str, np.ndarray], where: str) -> None:
     if "grade_band" in arrays:
         check_real(where, "grade_band", arrays["grade_band"], SceneError)
         if not arrays["grade_band"][0] < arrays["grade_band"][1]:
-            raise SceneError(f"{where}: array 'grade_band' {list(arrays['grade_band'])} must be [low, high], low < high")
+            raise SceneError(f"{where}: array 'grade_band' {list(arrays['grade_band'])} must be [low, high], "
+                             "low < high")

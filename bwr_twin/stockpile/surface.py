@@ -207,7 +207,8 @@ def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    lines = read_lines(file, what=where, max_rows=MAX_SURVEY_POINTS + 1, max_bytes=MAX_SURVEY_BYTES, error=SceneError,
+    lines = read_lines(file, what=where, max_rows=MAX_SURVEY_POINTS + 1, max_bytes=MAX_SURVEY_BYTES,
+                       error=SceneError,
                        why=f": a survey of at most {MAX_SURVEY_POINTS:,} points and a header (thin the cloud)")
     rows = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
     if rows and not reads_as_number(rows[0].split(",")[0]):
