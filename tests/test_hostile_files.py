@@ -1,5 +1,5 @@
 """Hostile files: a pile, survey or run file is checked before anything believes it (docs/reliability.md,
-"Files a user gives").
+classes 16-18).
 
 Every array read from a file goes through one loader (bwr_twin/arrays.py), which checks each
 member's header (keys, dtype, shape, bytes) before its data; what the arrays mean (counts against
