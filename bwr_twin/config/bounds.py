@@ -9,7 +9,9 @@ numbers a typing slip makes (t/m^3 for kg/m^3, radians for degrees) lie far outs
 
 The limits that need the machine (friction, the wheel drive's idle power) are checked against the
 plant's MJCF and its payloads. Where the pile is sampled (the grid spacing against the pile's
-size) the limit is checked as the pile is built (bwr_twin.stockpile.surface).
+size) the limit is checked as the pile is built (bwr_twin.stockpile.surface), and a pile read
+from a file has its heights checked against PILE_HEIGHT as it is read (bwr_twin.stockpile.surface,
+bwr_twin.stockpile.stacked).
 """
 
 from __future__ import annotations
@@ -55,6 +57,14 @@ LATERAL_RATIO = (0.0, 1.0)
 # weight, or slew and luff friction beyond that weight at the CP's reach (the longest lever the
 # machine has), is friction no machine can have.
 FRICTION_COEFFICIENT = 1.0
+
+# m above the yard floor, a pile's heights as a survey or a stacking's pile.npz gives them. The
+# tallest open stockpiles of ore and coal stand some 20-30 m, as high as a stacker's boom reaches
+# (the heavy scenes' pile stands 8 m); 100 m is no stockpile, but a survey in millimetres or
+# feet x 1e3. Below the floor lies only a survey's noise and the yard's drainage falls, a few
+# decimetres: 5 m below it is another datum, not the yard.
+PILE_HEIGHT = (-5.0, 100.0)
+PILE_HEIGHT_SOURCE = "metres above the yard floor: open stockpiles stand at most some 30 m"
 
 _Facts = tuple[str, float, float, float, float]  # machine file name, weight N, reach m, boom m, wheel drive W
 

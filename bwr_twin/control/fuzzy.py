@@ -25,7 +25,6 @@ import math
 import os
 import tempfile
 import warnings
-import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -33,7 +32,9 @@ from typing import Any
 import numba
 import numpy as np
 
+from bwr_twin.arrays import Member, load_npz
 from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.errors import BwrError
 
 # skfuzzy is imported where it is used: its import pulls in scipy and networkx (~1 s), which
 # runs that only load a cached surface never need.
@@ -379,16 +380,17 @@ def _read_cache(
     path: Path, digest: str, version: str, grid_points: int
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The cached (values, centres), or None if absent or not a whole, matching file."""
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            if str(data["digest"]) != digest or str(data["skfuzzy_version"]) != version:
-                return None
-            values = np.array(data["values"], dtype=float)
-            centres = np.array(data["centres"], dtype=float)
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile, EOFError):
-        return None
     n = grid_points
-    if values.shape != (n, n) or centres.shape != (n - 1, n - 1) or not np.isfinite(values).all():
+    text = Member("U", (), max_bytes=4096)
+    try:
+        data = load_npz(path, {"digest": text, "skfuzzy_version": text, "values": Member(shape=(n, n)),
+                               "centres": Member(shape=(n - 1, n - 1))}, what=str(path))
+    except BwrError:
+        return None
+    if str(data["digest"]) != digest or str(data["skfuzzy_version"]) != version:
+        return None
+    values, centres = np.array(data["values"], dtype=float), np.array(data["centres"], dtype=float)
+    if not np.isfinite(values).all():
         return None
     return values, centres
 

@@ -342,13 +342,9 @@ def read_recorded(path: Path) -> dict[str, np.ndarray]:
     its columns there, at least 2 rows, every row complete, those columns' values finite and time
     increasing. A problem is one BwrError naming the file, the row (1 = the first after the
     header) and the column."""
-    from bwr_twin.results.rundir import column_name
-    from bwr_twin.textfile import read_text
+    from bwr_twin.results.rundir import column_name, timeseries_lines
 
-    try:
-        lines = read_text(path).splitlines()
-    except UnicodeDecodeError:
-        raise BwrError(f"{path}: not a text file") from None
+    lines = timeseries_lines(path)
     header = lines[0].split(",") if lines else []
     rows = [line for line in lines[1:] if line.strip()]
     if len(rows) < 2:

@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import itertools
 import math
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bwr_twin.arrays import SCALAR, Member, check_real, load_npz
 from bwr_twin.errors import BwrError
 from bwr_twin.stockpile.history import PileHistory
 
@@ -42,6 +42,13 @@ HIT_WINDOW = 1.0  # s of hits the cloud shows, up to the current time
 MISS_SHARE = 0.1  # of the scanner's range: how long a ray that returned nothing is drawn
 KNOWN_FRAME_PERIOD = 1.0  # s between the live replay's frames of the scanned pile
 _TIE = 1e-9  # s: a time within this of a scan's counts as at or after it (times are sums of periods)
+# What the replay reads of scans.npz and survey.npz (bwr_twin.sensing.outputs). The hits are
+# memory-mapped where stored uncompressed, as the twin writes them; read, they may take 4 GiB.
+SCANS_SPEC = {"t": Member(shape=(None,)), "origin": Member(shape=(None, 3)),
+              "hits": Member("f", (None, None, 3), max_bytes=4 << 30),
+              "scanner": Member("U", (None,), required=False)}
+SURVEY_SPEC = {"x": Member(shape=(None,)), "y": Member(shape=(None,)), "t_end": SCALAR,
+               "t_plan": Member(shape=(), required=False)}
 
 
 @dataclass(frozen=True)
@@ -88,21 +95,22 @@ class Scans:
         if not path.is_file():
             return None
         survey = run_dir / SURVEY_FILE
-        try:
-            arrays = _npz_arrays(path)
-            t, origin, hits = arrays["t"], arrays["origin"], arrays["hits"]
-            plan_time = end_time = None
-            if survey.is_file():
-                with np.load(survey) as known:
-                    x, y, end_time = known["x"], known["y"], float(known["t_end"])
-                    plan_time = float(known["t_plan"]) if "t_plan" in known.files else None
-        except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
-            raise BwrError(f"{run_dir}: unreadable {SCANS_FILE} or {SURVEY_FILE}: {exc}") from None
+        arrays = load_npz(path, SCANS_SPEC, what=str(path), mmap=True)
+        t, origin, hits = arrays["t"], arrays["origin"], arrays["hits"]
+        plan_time = end_time = None
+        if survey.is_file():
+            known = load_npz(survey, SURVEY_SPEC, what=str(survey))
+            x, y, end_time = known["x"], known["y"], float(known["t_end"])
+            plan_time = float(known["t_plan"]) if "t_plan" in known else None
+            for key in ("x", "y"):
+                check_real(str(survey), key, known[key])
         if x is None or y is None or len(t) == 0:
             return None
-        if hits.ndim != 3 or hits.shape[2] != 3 or origin.shape != (len(t), 3) or len(hits) != len(t):
-            raise BwrError(f"{path}: hits {hits.shape} and origin {origin.shape} for {len(t)} scans; the twin "
-                           "writes (n, rays, 3) and (n, 3)")
+        scanner = arrays.get("scanner")
+        if origin.shape != (len(t), 3) or len(hits) != len(t) or (scanner is not None and len(scanner) != len(t)):
+            raise BwrError(f"{path}: hits {hits.shape}, origin {origin.shape} and scanner for {len(t)} scans; "
+                           "the twin writes (n, rays, 3), (n, 3) and (n,)")
+        check_real(str(path), "t", t)
         return cls(np.asarray(t, dtype=float), np.asarray(origin, dtype=float), hits, arrays.get("scanner"),
                    np.asarray(x, dtype=float), np.asarray(y, dtype=float), plan_time, end_time)
 
@@ -241,30 +249,4 @@ def _cells(points: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     iy = np.floor((points[:, 1] - y[0]) / spacing + 0.5)
     inside = (ix >= 0) & (ix < len(x)) & (iy >= 0) & (iy < len(y))
     return np.unique(iy[inside].astype(np.int64) * len(x) + ix[inside].astype(np.int64))
-
-
-def _npz_arrays(path: Path) -> dict[str, np.ndarray]:
-    """The arrays of an .npz file: each one stored uncompressed memory-mapped (read from disk as
-    it is used), the others read."""
-    out = {}
-    with zipfile.ZipFile(path) as archive, open(path, "rb") as raw:
-        for info in archive.infolist():
-            name = info.filename.removesuffix(".npy")
-            if info.compress_type == zipfile.ZIP_STORED:
-                raw.seek(info.header_offset)
-                local = raw.read(30)  # the member's local header: its name and extra field follow
-                start = info.header_offset + 30 + int.from_bytes(local[26:28], "little") + int.from_bytes(
-                    local[28:30], "little")
-                raw.seek(start)
-                version = np.lib.format.read_magic(raw)
-                header = {(1, 0): np.lib.format.read_array_header_1_0,
-                          (2, 0): np.lib.format.read_array_header_2_0}.get(version)
-                shape, fortran, dtype = header(raw) if header else ((), False, np.dtype(object))
-                if not dtype.hasobject and math.prod(shape) > 0:
-                    out[name] = np.memmap(path, dtype=dtype, mode="r", offset=raw.tell(), shape=shape,
-                                          order="F" if fortran else "C")
-                    continue
-            with archive.open(info) as member:
-                out[name] = np.lib.format.read_array(member, allow_pickle=False)
-    return out
 

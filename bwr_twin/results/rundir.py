@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bwr_twin.arrays import read_lines
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 from bwr_twin.results.ownership import check_output, mark
@@ -37,6 +38,11 @@ METRICS_FILE = "metrics.json"
 PILE_FILE = "pile.npz"
 TIMESERIES_FILE = "timeseries.csv"
 SCENE_FILE = "scene.json"
+# The most rows a timeseries.csv is read with (a header besides): 12 h, the longest run the budget
+# starts without --force (bwr_twin.sim.budget), recorded every 0.01 s are 4,320,000 rows. Its rows
+# take some 500 bytes each (43 columns of a stacking), 2 GB; 4 GiB is the most a file is read with.
+MAX_TIMESERIES_ROWS = 5_000_000
+MAX_TIMESERIES_BYTES = 4 << 30
 
 _LOOP_COLUMNS = {signal.column: signal for signal in LOOP + NEIGHBOUR}
 
@@ -93,13 +99,18 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
 
 def read_timeseries(path: str | Path) -> dict[str, np.ndarray]:
     """Read a timeseries.csv back into {column name: array}."""
-    path = Path(path)
-    with open(path) as f:
-        names = f.readline().strip().split(",")
-    values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    lines = timeseries_lines(path)
+    names = lines[0].strip().split(",") if lines else [""]
+    values = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
     if values.size == 0:  # a header and no rows
         values = np.empty((0, len(names)))
     return {name: values[:, i] for i, name in enumerate(names)}
+
+
+def timeseries_lines(path: str | Path) -> list[str]:
+    """The lines of a timeseries.csv, refused (BwrError) past MAX_TIMESERIES_ROWS or _BYTES."""
+    return read_lines(path, what=str(path), max_rows=MAX_TIMESERIES_ROWS + 1, max_bytes=MAX_TIMESERIES_BYTES,
+                      why=f": a time series of at most {MAX_TIMESERIES_ROWS:,} rows and a header")
 
 
 def _umask() -> int:

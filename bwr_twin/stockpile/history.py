@@ -13,7 +13,20 @@ from pathlib import Path
 
 import numpy as np
 
+from bwr_twin.arrays import TEXT, Member, check_index, check_real, check_within, load_npz
+from bwr_twin.errors import BwrError
 from bwr_twin.stockpile.layers import top_grade
+
+_LINE, _GRID = Member(shape=(None,)), Member(shape=(None, None))
+_FRAME, _FRAME_INDICES = Member(shape=(None,), required=False), Member("iu", (None,), required=False)
+# What the replay takes from a run's pile.npz (the output contract, docs/contracts.md).
+SPEC = {"x": _LINE, "y": _LINE, "z_start": _GRID, "z_end": _GRID, "frame_time": _FRAME,
+        "frame_offsets": _FRAME_INDICES, "frame_cells": _FRAME_INDICES, "frame_heights": _FRAME,
+        "grade_start": Member(shape=(None, None), required=False), "frame_grades": _FRAME,
+        "grade_name": Member("U", (), TEXT.max_bytes, required=False),
+        "grade_band": Member(shape=(2,), required=False),
+        "layer_grade": Member(shape=(None, None, None), required=False),
+        "layer_count": Member("iu", (None, None), required=False)}
 
 
 @dataclass(frozen=True)
@@ -67,8 +80,8 @@ class PileHistory:
     @classmethod
     def read(cls, path: Path, end_time: float) -> PileHistory:
         """From a run's pile.npz; one written without its history ends at `end_time` (s)."""
-        with np.load(path) as data:
-            arrays = {key: data[key] for key in data.files}
+        arrays = load_npz(path, SPEC, what=str(path))
+        _check(arrays, str(path))
         name = str(arrays["grade_name"]) if "grade_name" in arrays else ""
         band = tuple(float(v) for v in arrays["grade_band"]) if "grade_band" in arrays else None
         if "frame_time" not in arrays:
@@ -92,6 +105,41 @@ class PileHistory:
             if self.grade_band is not None:
                 arrays["grade_band"] = np.array(self.grade_band)
         return arrays
+
+
+def _check(arrays: dict[str, np.ndarray], what: str) -> None:
+    """BwrError, naming the array and the limit, unless a pile.npz's arrays agree with its grid:
+    the heights (ny, nx) and finite, each frame's cells within the grid and the offsets that
+    slice them rising from 0 to their count, the layers' counts within the layers held."""
+    grid = (len(arrays["y"]), len(arrays["x"]))
+    for key in ("x", "y", "z_start", "z_end"):
+        check_real(what, key, arrays[key])
+    for key in ("z_start", "z_end", "grade_start", "layer_count"):
+        if key in arrays and arrays[key].shape != grid:
+            raise BwrError(f"{what}: array '{key}' has the shape {arrays[key].shape}; the grid lines x, y make it "
+                           f"{grid}")
+    if "frame_time" in arrays:
+        frames = ("frame_offsets", "frame_cells", "frame_heights")
+        frames += ("frame_grades",) if "grade_start" in arrays else ()
+        absent = [key for key in frames if key not in arrays]
+        if absent:
+            raise BwrError(f"{what}: has 'frame_time' but no array '{absent[0]}'")
+        check_real(what, "frame_time", arrays["frame_time"])
+        offsets, cells = arrays["frame_offsets"], arrays["frame_cells"]
+        if len(offsets) != len(arrays["frame_time"]) + 1 or offsets[0] != 0 or np.any(np.diff(offsets) < 0):
+            raise BwrError(f"{what}: array 'frame_offsets' must rise from 0, one more than the "
+                           f"{len(arrays['frame_time'])} frames of 'frame_time'")
+        for key in frames[1:]:
+            if len(arrays[key]) != offsets[-1]:
+                raise BwrError(f"{what}: array '{key}' holds {len(arrays[key]):,} values, and 'frame_offsets' "
+                               f"ends at {offsets[-1]:,}")
+        check_index(what, "frame_cells", cells, grid[0] * grid[1], "cells of the grid", BwrError)
+    elif "layer_grade" in arrays:
+        grade = arrays["layer_grade"]
+        if "layer_count" not in arrays or grade.shape[:2] != grid:
+            raise BwrError(f"{what}: array 'layer_grade' {grade.shape} needs 'layer_count', both on the grid {grid}")
+        check_within(what, "layer_count", arrays["layer_count"], 0, grade.shape[2],
+                     f"a column holds 0 to the {grade.shape[2]} layers of 'layer_grade'")
 
 
 class PileFrames:

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from bwr_twin.arrays import Member, check_within, first_false, load_npz, npz_keys, read_lines
+from bwr_twin.config.bounds import PILE_HEIGHT, PILE_HEIGHT_SOURCE
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
-from bwr_twin.textfile import read_text
 from bwr_twin.values import reads_as_number
 
 YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
@@ -27,6 +28,12 @@ STACKED_KEY = "layer_thickness"  # the array that makes a pile.npz a stacked pil
 # 4 and 24 % at 2), better than the 5-15 % of a manual survey; a coarser grid samples the pile to a
 # few posts, or to nothing, and the reclaimed tonnage with it.
 MIN_CELLS_ACROSS = 8
+# The most points a .csv survey may hold: 1,000,000 points sample a 250 x 250 m yard every 0.25 m.
+# Every point is parsed and triangulated (3,000,000 took 2.4 GB and minutes): thin a denser cloud.
+MAX_SURVEY_POINTS = 1_000_000
+MAX_SURVEY_BYTES = 100 * MAX_SURVEY_POINTS  # 100 characters a row of x,y,z
+_GRID = Member(shape=(None,), max_bytes=8 * MAX_CELLS)  # a survey's grid lines, m
+_HEIGHTS = Member(shape=(None, None), max_bytes=8 * MAX_CELLS)  # its heights: at most MAX_CELLS of them
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,7 +139,7 @@ def _surveyed(file: Path, spacing: float, scene_path: Path, stamp: int) -> Surfa
     where = f"{scene_path}: 'stockpile.surface_file' {file}"
     if file.suffix == ".npz":
         xs, ys, zs = _read_npz(file, where)
-        if STACKED_KEY in _npz_keys(file) and not math.isclose(xs[1] - xs[0], spacing, rel_tol=1e-9):
+        if STACKED_KEY in npz_keys(file) and not math.isclose(xs[1] - xs[0], spacing, rel_tol=1e-9):
             raise SceneError(f"{where}: a stacked pile is reclaimed on the grid it was stacked on, its layers "
                              f"cell by cell: 'stockpile.grid_spacing' must be its {xs[1] - xs[0]:g} m, got {spacing:g} m")
     elif file.suffix == ".csv":
@@ -176,42 +183,34 @@ def _pile_extent(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, where: str) -> 
 
 def is_stacked_pile(file: Path | None) -> bool:
     """Whether `file` is a stacking run's pile.npz, its layers of grade in it (docs/blending.md)."""
-    return file is not None and Path(file).suffix == ".npz" and STACKED_KEY in _npz_keys(Path(file))
-
-
-def _npz_keys(file: Path) -> frozenset[str]:
-    try:
-        with np.load(file, allow_pickle=False) as data:
-            return frozenset(data.files)
-    except (OSError, ValueError):
-        return frozenset()
+    return file is not None and Path(file).suffix == ".npz" and STACKED_KEY in npz_keys(Path(file))
 
 
 def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        with np.load(file, allow_pickle=False) as data:
-            heights = "z_end" if STACKED_KEY in data and "z" not in data else "z"  # a stacked pile as it ended
-            missing = [key for key in ("x", "y", heights) if key not in data]
-            if missing:
-                raise SceneError(f"{where}: has no array '{missing[0]}' (x, y: grid lines in m; z: heights in m)")
-            x, y, z = (np.asarray(data[key], dtype=float) for key in ("x", "y", heights))
-    except (OSError, ValueError) as exc:
-        raise SceneError(f"{where}: not a readable .npz file ({exc})") from None
+    keys = npz_keys(file)
+    if STACKED_KEY in keys:  # a stacked pile: its layers are checked against its heights before any use
+        from bwr_twin.stockpile.stacked import stacked_arrays  # which builds on this module
+
+        stacked_arrays(file, where)
+    heights = "z_end" if STACKED_KEY in keys and "z" not in keys else "z"  # a stacked pile as it ended
+    arrays = load_npz(file, {"x": _GRID, "y": _GRID, heights: _HEIGHTS}, what=where, error=SceneError,
+                      missing=" (x, y: grid lines in m; z: heights in m)")
+    x, y, z = (np.asarray(arrays[key], dtype=float) for key in ("x", "y", heights))
     if x.ndim != 1 or y.ndim != 1 or z.shape != (len(y), len(x)) or len(x) < 2 or len(y) < 2:
         raise SceneError(f"{where}: z must be a (len(y), len(x)) grid of at least 2 x 2, got z {z.shape}, "
                          f"x {x.shape}, y {y.shape}")
     if not (np.all(np.diff(x) > 0) and np.all(np.diff(y) > 0)):
         raise SceneError(f"{where}: x and y must increase")
     _check_finite(where, x, y, z)
+    check_within(where, heights, z, *PILE_HEIGHT, PILE_HEIGHT_SOURCE, SceneError)
     return x, y, z
 
 
 def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        text = read_text(file)
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{where}: cannot read it ({exc})") from None
-    rows = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    lines = read_lines(file, what=where, max_rows=MAX_SURVEY_POINTS + 1, max_bytes=MAX_SURVEY_BYTES,
+                       error=SceneError,
+                       why=f": a survey of at most {MAX_SURVEY_POINTS:,} points and a header (thin the cloud)")
+    rows = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
     if rows and not reads_as_number(rows[0].split(",")[0]):
         rows = rows[1:]  # a header line
     points = []
@@ -224,6 +223,11 @@ def _read_points(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.nda
         raise SceneError(f"{where}: needs at least 3 points, got {len(points)}")
     xs, ys, zs = np.array(points).T
     _check_finite(where, xs, ys, zs)
+    low, high = PILE_HEIGHT
+    row = first_false((zs >= low) & (zs <= high))
+    if row is not None:
+        raise SceneError(f"{where}: data row {row[0] + 1}: z {zs[row]:g} m lies outside [{low:g}, {high:g}] "
+                         f"({PILE_HEIGHT_SOURCE})")
     if np.ptp(xs) == 0 or np.ptp(ys) == 0:
         raise SceneError(f"{where}: the points lie on a line: they span no area")
     return xs, ys, zs
