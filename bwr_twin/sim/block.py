@@ -62,10 +62,6 @@ class Block:
         block.q[0], block.qd[0] = self.q[0], self.qd[0]
         return block
 
-    @property
-    def full(self) -> bool:
-        return self.row == self.length
-
     def roll(self) -> None:
         """The rows written so far are reduced: the last period's end is the next block's start."""
         n = self.row

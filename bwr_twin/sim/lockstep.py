@@ -36,7 +36,7 @@ from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import mujoco_warnings
 from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.sim.record import RunResult
-from bwr_twin.sim.stages import HOOKS, hooked
+from bwr_twin.sim.stages import Hooks
 
 HEALTH_CHECK_EVERY = 100  # control periods between checks for divergence, and progress reports
 
@@ -176,7 +176,7 @@ class Lockstep:
         self.machine, self.belief_machine, self.tracking = parts.machine, parts.belief_machine, parts.tracking
         self._plant = plant = parts.plant
         self.samples = self.tracking.samples
-        self._hooks = {hook: hooked(parts.stages, hook) for hook in HOOKS}
+        self._hooks = Hooks.of(parts.stages)
         self._block = Block(self.runs, BLOCK if observe else 1, own_reference=self.tracking.own_rows,
                             reclaim=parts.reclaim is not None, neighbour=parts.neighbour is not None)
         self._block.q[0], self._block.qd[0] = plant.qpos, plant.qvel  # the first period's start
@@ -276,7 +276,7 @@ class Lockstep:
         """The encoders' (runs, 3) positions and velocities at the start of period k (read-only); once a period."""
         k, block = self.k, self._block
         row = block.rows[block.row]
-        for stage in self._hooks["measure"]:
+        for stage in self._hooks.measure:
             stage.measure(k, row)
         return row.q_measured_view, row.qd_measured_view
 
@@ -284,19 +284,21 @@ class Lockstep:
         """Hold the (runs, 3) drive forces (N, N m) over period k, with the period's disturbances."""
         k, block, plant, tracking, hooks = self.k, self._block, self._plant, self.tracking, self._hooks
         row = block.rows[block.row]
-        row.command[...] = command
-        if first_non_finite(row.command) >= 0:
-            self._stop_non_finite(row.command)
+        applied = row.command
+        applied[...] = command
+        if first_non_finite(applied) >= 0:
+            self._stop_non_finite(applied)
         phase = tracking.phase()
-        for stage in hooks["world"]:
+        for stage in hooks.world:
             stage.world(k, row)
-        applied = block.applied  # what the drives apply: the command, where no stage overrides it
-        applied[...] = row.command
-        for stage in hooks["drives"]:
-            stage.drives(k, applied)
+        if hooks.drives:  # the drives apply the command, unless a stage overrides it
+            applied = block.applied
+            applied[...] = row.command
+            for stage in hooks.drives:
+                stage.drives(k, applied)
         plant.step(applied, row.disturbance, row.gust)
         plant.read(row.q_next, row.qd_next, row.drive_force)
-        for stage in hooks["stepped"]:
+        for stage in hooks.stepped:
             stage.stepped(k, row)
         controller = self._controller
         for name, rows in row.controller:
@@ -306,12 +308,12 @@ class Lockstep:
         if tracking.samples != self.samples:
             self._resize(tracking.samples)
         block.row += 1
-        if block.full:
+        if block.row == block.length:
             self._reduce()
         if k % HEALTH_CHECK_EVERY == 0:
             plant.check_health()
         if k == self.samples:
-            for stage in hooks["finish"]:
+            for stage in hooks.finish:
                 stage.finish(k)
             tracking.finish()
             self._reduce()
@@ -359,7 +361,7 @@ class Lockstep:
         """Run `run`'s result: the observer's metrics and record, with each stage's share."""
         scene, stages, recorder = self.scenes[run], self._hooks, self._observer.recorder
         metrics = self._observer.metrics.result(run, self.time)
-        for stage in stages["metrics"]:
+        for stage in stages.metrics:
             stage.metrics(run, metrics)
         if "reclaim" in metrics:  # how the run carried out its plan
             metrics["reclaim"].update(self.tracking.reclaim_metrics(run))
@@ -376,7 +378,7 @@ class Lockstep:
         waypoints, _ = self.tracking.waypoints(run)
         result = recorder.run_result(run, scene=scene, machine=self.machine, trajectory=waypoints,
                                      time=self.time, metrics=metrics)
-        for stage in stages["result"]:
+        for stage in stages.result:
             stage.result(run, result, recorder)
         for section in SECTIONS:  # metrics.json's sections in the contract's order
             if section in metrics:

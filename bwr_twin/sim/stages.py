@@ -24,6 +24,7 @@ nothing of the loop: the stages here bind them to it.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -44,7 +45,6 @@ from bwr_twin.sim.record import ReclaimRecord, Recorder, RunResult
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.stacking import Stacking
 
-HOOKS = ("measure", "world", "drives", "stepped", "finish", "metrics", "result")
 
 
 class Stage:
@@ -72,9 +72,21 @@ class Stage:
         """Add this stage's records to `run`'s result (its metrics are `result.metrics`)."""
 
 
-def hooked(stages: tuple[Stage, ...], hook: str) -> tuple[Stage, ...]:
-    """The stages, in order, that implement `hook`."""
-    return tuple(s for s in stages if getattr(type(s), hook) is not getattr(Stage, hook))
+class Hooks(NamedTuple):
+    """For each hook, the stages that implement it, in the stages' order."""
+
+    measure: tuple[Stage, ...]
+    world: tuple[Stage, ...]
+    drives: tuple[Stage, ...]
+    stepped: tuple[Stage, ...]
+    finish: tuple[Stage, ...]
+    metrics: tuple[Stage, ...]
+    result: tuple[Stage, ...]
+
+    @classmethod
+    def of(cls, stages: Sequence[Stage]) -> Hooks:
+        return cls(*(tuple(s for s in stages if getattr(type(s), hook) is not getattr(Stage, hook))
+                     for hook in cls._fields))
 
 
 class EncoderReading(Stage):
