@@ -34,8 +34,8 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.model.instruments import read_instruments
 from bwr_twin.model.spec import compile_model
-from bwr_twin.sensing.instruments import read_instruments
 from bwr_twin.serve.twin import MEASURED, Twin
 from bwr_twin.sim.plant import mujoco_warnings
 
