@@ -35,8 +35,8 @@ from bwr_twin.config.plugins import interlock_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import PluginError
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.surface import Surface
 from bwr_twin.sim.plugins import call, checked, construct, describe
-from bwr_twin.stockpile.surface import Surface
 
 
 class Guard:

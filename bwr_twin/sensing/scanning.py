@@ -25,12 +25,12 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.model.mount import site_pose
 from bwr_twin.model.scanner import Scanner, read_scanners
 from bwr_twin.model.spec import compile_model
+from bwr_twin.pile.surface import YARD_FLOOR, Surface
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.noise import ScanNoise
 from bwr_twin.sensing.outputs import KnownPile, ScanLog, ScanRecord
 from bwr_twin.sensing.raycast import grid_of, ray_distance
 from bwr_twin.sensing.survey import Survey
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 from bwr_twin.textfile import version
 
 _DUE = 1e-9  # s: a scan due within this of a period's time is due at that period (rounding of n / rate)

@@ -32,6 +32,7 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
 from bwr_twin.errors import BwrError, SceneError, SimulationError
 from bwr_twin.model.machine import AXES, Machine
+from bwr_twin.pile.surface import build_surface
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import rate_instruments, rate_loop_reads_instruments
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
@@ -47,7 +48,6 @@ from bwr_twin.sim.record import ReclaimRecord, RunResult
 from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.stacking import Stacking
-from bwr_twin.stockpile.surface import build_surface
 
 HEALTH_CHECK_EVERY = 100  # control periods between checks for divergence, and progress reports
 

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import SceneError
+from bwr_twin.pile.surface import Surface
 from bwr_twin.stockpile.grade import tonne_weighted
 from bwr_twin.stockpile.layers import LayeredPile
-from bwr_twin.stockpile.surface import Surface
 
 
 @dataclass(frozen=True)
