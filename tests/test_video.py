@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, SHORT_VIA_POINTS, write_short_scene
 
+from bwr_twin.ownership import VIDEO_WRITER, written_by
 from bwr_twin.replay import Recording
 from bwr_twin.replay.__main__ import main
-from bwr_twin.results.ownership import VIDEO_WRITER, written_by
 
 SHORT_RUN = 20.0  # s, SHORT_VIA_POINTS' run
 
