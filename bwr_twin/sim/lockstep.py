@@ -27,6 +27,7 @@ from bwr_twin.collision.guard import Guard
 from bwr_twin.collision.machines import MachineClearance
 from bwr_twin.collision.monitor import WATCH, PileClearance
 from bwr_twin.config.faults import check_fault_scanners
+from bwr_twin.config.plugin_calls import call, checked, construct, describe
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
@@ -43,7 +44,6 @@ from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant, mujoco_warnings
-from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.sim.record import ReclaimRecord, RunResult
 from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
