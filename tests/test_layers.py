@@ -85,7 +85,7 @@ def test_every_unit_of_the_package_has_one_layer():
 UP_IMPORTS = {
     "module level": "from bwr_twin.sim.lockstep import simulate\n",
     "plain import": "import bwr_twin.results.rundir\n",
-    "in a function": "def f():\n    from bwr_twin.serve.twin import Twin\n    return Twin\n",
+    "in a function": "def f():\n    from bwr_twin.sim.twin import Twin\n    return Twin\n",
     "type checking": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from bwr_twin.sim.record import RunResult\n",
     "relative": "from ..sim import lockstep\n",
     "relative module": "from ..collision.monitor import PileClearance\n",

@@ -13,7 +13,7 @@ from pathlib import Path
 from bwr_twin.errors import BwrError
 from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import write_run
-from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.twin import Twin
 
 
 class RunWriter:
