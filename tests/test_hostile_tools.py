@@ -240,7 +240,8 @@ def test_a_file_the_twin_wrote_is_replaced_and_its_mark_is_its_first_line(tmp_pa
 def test_a_byte_order_mark_and_crlf_line_ends_are_read_as_without(tmp_path, encode):
     from bwr_twin.config.scene import load_scene
     from bwr_twin.config.tuning import load_tuning
-    from bwr_twin.fis.convert import load_rule_base, load_system
+    from bwr_twin.control.rulebase import load_rule_base
+    from bwr_twin.fis.convert import load_system
 
     scene = write_short_scene(tmp_path)
     plain = load_scene(scene)
