@@ -1,10 +1,14 @@
 """bwr_twin: a MuJoCo digital twin of a bucket wheel reclaimer under fuzzy, model-based control.
 
-The sub-packages follow the data flow:
+The package is built in layers (bwr_twin.layers), lowest first; each imports only from itself and
+the layers before it:
 
-    config (scene and sweep files) -> model (MJCF machine, kinematics) -> planning (trajectory)
-    -> control (fuzzy surface, belief, control law) -> sim (plant, encoders, lockstep loop)
-    -> results (records, metrics, run directories, plots) -> batch, replay
+    errors; units, values, textfile, signals, progress, arguments, exposure, shipped, ownership
+    -> model (MJCF machine, kinematics, its parts) -> control (control laws, rule base)
+    -> fis (.fis files) -> config (scene and sweep files, plug-ins) -> pile (the pile's shape)
+    -> planning (trajectory, bench and stacking plans) -> stockpile (material, digging, stacking)
+    -> sensing, collision -> sim (plant, encoders, lockstep loop, twin) -> results (run directories,
+    plots) -> run -> batch, compare, export, gym, replay, serve -> tune
 """
 
 from bwr_twin.errors import (

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import BwrError
+from bwr_twin.textfile import decode
 
 MAX_ARRAY_BYTES = 1 << 30  # a member of an .npz file, unless its reader says less: 1 GiB
 _KINDS = {"f": "real numbers", "i": "whole numbers", "u": "whole numbers", "U": "text", "b": "true or false",
@@ -188,8 +189,6 @@ def read_lines(path: str | Path, *, what: str, max_rows: int, max_bytes: int, er
     """The lines of a UTF-8 text file (bwr_twin.textfile: without a byte-order mark, CRLF read as
     LF), streamed and refused as soon as it holds more than `max_rows` lines or `max_bytes`
     (`why`, if given, ends the message: what the limit is for)."""
-    from bwr_twin.textfile import decode
-
     data = bytearray()
     try:
         with open(path, "rb") as stream:

@@ -66,8 +66,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.ownership import check_output
     from bwr_twin.progress import simulated_seconds
-    from bwr_twin.results.ownership import check_output
     from bwr_twin.results.rundir import write_run
     from bwr_twin.results.summary import summary_table
     from bwr_twin.shipped import find_scene

@@ -21,7 +21,7 @@ from bwr_twin.batch import BatchLock
 from bwr_twin.config.sweep import load_sweep
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
-from bwr_twin.results.ownership import MARKER_FILE
+from bwr_twin.ownership import MARKER_FILE
 
 # Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
 FAR_VIA_POINTS = [*SHORT_VIA_POINTS, {"t": 40.0, "p": [-55.0, -11.0, 2.0]}]

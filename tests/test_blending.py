@@ -12,13 +12,13 @@ import pytest
 
 from bwr_twin import SceneError
 from bwr_twin.config.scene import StockpileSection, WindrowSection
+from bwr_twin.pile.relaxation import DEFAULT_TOLERANCE, Talus, relax
+from bwr_twin.pile.surface import Surface, windrow
 from bwr_twin.stockpile.blending import blend, chevron_pile, slice_grades, stacked_grades
 from bwr_twin.stockpile.deposition import discharge, footprint
 from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
-from bwr_twin.stockpile.relaxation import DEFAULT_TOLERANCE, Talus, relax
-from bwr_twin.stockpile.surface import Surface, windrow
 
 IRON_ORE = Material(bulk_density=2400.0, angle_of_repose=37.0)  # as heavy_dig_pile's [stockpile]
 SPACING = 0.5  # m
@@ -255,7 +255,7 @@ def test_deposited_at_one_point_a_cone_grows_at_the_angle_of_repose():
         flank = (z > 0.2 * height) & (z < 0.8 * height)
         assert -np.polyfit(run[flank], z[flank], 1)[0] == pytest.approx(tan, rel=0.01)
         reaches.append(np.mean(run[flank] + z[flank] / tan))  # where the flank meets the floor
-    # A regular octagonal pyramid at the angle of repose (bwr_twin.stockpile.relaxation), its
+    # A regular octagonal pyramid at the angle of repose (bwr_twin.pile.relaxation), its
     # apex a cell across: the flanks meet the floor as far out along the diagonals as the grid
     # lines, and it holds the volume laid.
     reach = np.mean(reaches)

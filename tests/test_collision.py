@@ -10,9 +10,9 @@ from conftest import HEAVY_MJCF, SCENES
 
 from bwr_twin import ModelError
 from bwr_twin.collision.pile import clearances
-from bwr_twin.collision.shapes import BOX, CAPSULE
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.model.shapes import BOX, CAPSULE
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
 

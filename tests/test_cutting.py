@@ -9,8 +9,9 @@ from conftest import HEAVY_MJCF, SCENES
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine, Wheel
-from bwr_twin.stockpile.cutting import CELL_MARGIN, Cut, Cutter
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface, build_surface
+from bwr_twin.pile.cutting import CELL_MARGIN, Cut, Cutter
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface, build_surface
 
 
 class NumpyCutter:

@@ -24,8 +24,8 @@ from fmpy.validation import validate_fmu
 from test_serve import Launched, pid_session
 
 from bwr_twin.config.scene import load_scene
-from bwr_twin.serve.twin import Twin
 from bwr_twin.sim.lockstep import Lockstep
+from bwr_twin.sim.twin import Twin
 
 PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
 CHECKS = ROOT / "tests" / "fmu_checks.py"

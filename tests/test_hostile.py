@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from conftest import PAPER_MJCF, ROOT, unrated_paper_mjcf, write_short_scene
 
-from bwr_twin.results.ownership import mark
+from bwr_twin.ownership import mark
 
 
 def cli(module: str, *args, cwd: Path = ROOT, **popen) -> subprocess.CompletedProcess:

@@ -26,11 +26,11 @@ from conftest import ROOT, SCENES
 from bwr_twin.arrays import Member, load_npz, read_lines
 from bwr_twin.config.scene import StockpileSection
 from bwr_twin.errors import BwrError, SceneError
+from bwr_twin.pile.stacked_file import stacked_arrays
+from bwr_twin.pile.surface import MAX_SURVEY_POINTS, build_surface
 from bwr_twin.results.rundir import MAX_TIMESERIES_ROWS, read_timeseries
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
-from bwr_twin.stockpile.stacked import stacked_arrays
-from bwr_twin.stockpile.surface import MAX_SURVEY_POINTS, build_surface
 
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
 # A reclaim of a stacked pile, and a dig of a windrow, given their pile with --pile.

@@ -19,7 +19,7 @@ import pytest
 from conftest import write_short_scene
 from test_hostile import assert_refused, cli, snapshot
 
-from bwr_twin.results.ownership import mark
+from bwr_twin.ownership import mark
 from bwr_twin.shipped import RULE_BASES, SCENES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -217,7 +217,7 @@ def test_one_parameter_is_tuned_by_a_bounded_scalar_search(tmp_path):
 def test_a_file_the_twin_wrote_is_replaced_and_its_mark_is_its_first_line(tmp_path):
     from matplotlib.figure import Figure
 
-    from bwr_twin.results.ownership import picture_metadata, written_by
+    from bwr_twin.ownership import picture_metadata, written_by
 
     for name in ("paper.fis", "paper.toml"):
         proc = cli("fis", "convert", RULE_BASES / "paper_table2.toml", name, cwd=tmp_path)
@@ -240,7 +240,8 @@ def test_a_file_the_twin_wrote_is_replaced_and_its_mark_is_its_first_line(tmp_pa
 def test_a_byte_order_mark_and_crlf_line_ends_are_read_as_without(tmp_path, encode):
     from bwr_twin.config.scene import load_scene
     from bwr_twin.config.tuning import load_tuning
-    from bwr_twin.fis.convert import load_rule_base, load_system
+    from bwr_twin.control.rulebase import load_rule_base
+    from bwr_twin.fis.convert import load_system
 
     scene = write_short_scene(tmp_path)
     plain = load_scene(scene)

@@ -17,7 +17,7 @@ from st_python import forces_on, load_exported, outputs_on, read_global_constant
 from bwr_twin.config.scene import load_scene
 from bwr_twin.config.scene_toml import scene_toml
 from bwr_twin.control.fuzzy import skfuzzy_compute
-from bwr_twin.fis.convert import load_rule_base
+from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.sim.lockstep import simulate
 
 

@@ -11,10 +11,10 @@ from test_reclaim_plan import scene_file
 from bwr_twin import SceneError
 from bwr_twin.config.scene import RateControlSection, load_scene
 from bwr_twin.control.rate import PowerAndScale, RateSignals, WheelCalibration
+from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.model.machine import Machine
 from bwr_twin.planning.bench import plan_after_survey, plan_scene
 from bwr_twin.results.rundir import write_run
-from bwr_twin.sensing.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.lockstep import simulate
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR

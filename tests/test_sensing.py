@@ -18,17 +18,17 @@ from bwr_twin import BwrError, ModelError, SceneError
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene, load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.model.scanner import Mount, Scanner
 from bwr_twin.model.spec import Edits, compile_model
+from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.results.rundir import write_run
 from bwr_twin.sensing.outputs import HIT_BYTES, SCAN_BYTES, SURVEY_CELL_BYTES
 from bwr_twin.sensing.raycast import cast_rays
-from bwr_twin.sensing.scanner import Mount, Scanner
 from bwr_twin.sensing.scanning import Scanning, active_scanners
 from bwr_twin.sensing.survey import Survey, tonnes_against
 from bwr_twin.sim import budget
 from bwr_twin.sim.budget import estimate
 from bwr_twin.sim.lockstep import Lockstep, lockstep_key, simulate, simulate_lockstep
-from bwr_twin.stockpile.surface import Surface, build_surface
 
 DEG = math.pi / 180
 

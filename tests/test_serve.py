@@ -513,7 +513,7 @@ def test_a_machine_without_ratings_gets_the_documented_finite_ranges(tmp_path):
     from rest at home against gravity, accelerations ±1, speeds the end stops' span in 60 s."""
     import re
 
-    from bwr_twin.serve.ranges import eu_ranges
+    from bwr_twin.sim.ranges import eu_ranges
 
     unrated = unrated_paper_mjcf(tmp_path)
     unrated.write_text(re.sub(r'<numeric name="rated_speed_\w+"[^>]*/>', "", unrated.read_text()))
@@ -824,7 +824,7 @@ def test_the_reclaim_rate_is_published_as_the_wheel_digs():
     from test_stockpile import SHORT_DIG
 
     from bwr_twin.config.plugins import controller_class
-    from bwr_twin.serve.twin import Twin
+    from bwr_twin.sim.twin import Twin
 
     twin = Twin(load_scene(find_scene("heavy_dig_pile"), SHORT_DIG))
     loop = twin.loop

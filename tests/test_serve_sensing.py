@@ -223,7 +223,7 @@ def test_a_run_without_senses_serves_none_of_their_nodes():
     paper contract alone."""
     from bwr_twin.serve.clock import Clock
     from bwr_twin.serve.server import build_address_space
-    from bwr_twin.serve.twin import Twin
+    from bwr_twin.sim.twin import Twin
 
     async def children():
         server = Server()

@@ -15,12 +15,12 @@ from conftest import SCENES
 from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.relaxation import Talus
 from bwr_twin.planning.stacking import plan_stacking
 from bwr_twin.replay.charts import charts
 from bwr_twin.results.rundir import read_timeseries, write_run
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
-from bwr_twin.stockpile.relaxation import Talus
 
 SCENE = SCENES / "heavy_chevron_stack.toml"
 # 2,000 t in 4 layers on a 40 m axis: 720 s of stacking.

@@ -15,10 +15,10 @@ from conftest import SCENES
 from bwr_twin import SceneError
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.relaxation import Talus
 from bwr_twin.planning.stacking import LOWEST_MARGIN, plan_stacking, target_ridge
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
-from bwr_twin.stockpile.relaxation import Talus
 from bwr_twin.units import SECONDS_PER_HOUR
 
 SCENE = SCENES / "heavy_chevron_stack.toml"

@@ -16,13 +16,13 @@ from bwr_twin import ModelError, SceneError
 from bwr_twin.config.scene import StockpileSection, WindrowSection, load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_heights
+from bwr_twin.pile.cutting import Cutter
+from bwr_twin.pile.relaxation import Talus
+from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
-from bwr_twin.stockpile.cutting import Cutter
 from bwr_twin.stockpile.digging import jacobian_transpose
 from bwr_twin.stockpile.placement import check_placement
-from bwr_twin.stockpile.relaxation import Talus
-from bwr_twin.stockpile.surface import Surface, build_surface
 
 # heavy_dig_pile's cut, shortened: from beside the windrow's flank at slew 30 deg into it at
 # 0.15 deg/s, then up and clear of the pile, where the run ends (travel m, slew deg, luff deg).

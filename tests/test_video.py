@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, SHORT_VIA_POINTS, write_short_scene
 
+from bwr_twin.ownership import VIDEO_WRITER, written_by
 from bwr_twin.replay import Recording
 from bwr_twin.replay.__main__ import main
-from bwr_twin.results.ownership import VIDEO_WRITER, written_by
 
 SHORT_RUN = 20.0  # s, SHORT_VIA_POINTS' run
 
@@ -104,10 +104,10 @@ def test_frames_show_each_run_and_its_errors(short_run):
 def test_the_pile_is_drawn_as_it_was_dug(short_run):
     """A pile under the path whose history lowers a patch at t = 5 s: the hfield falls there and
     the texture shows the cut in fresh ore, as the browser marks it."""
+    from bwr_twin.pile.surface import Surface
     from bwr_twin.replay.pile import CUT_COLOUR, ORE_COLOUR
     from bwr_twin.replay.video_frames import FrameRenderer
     from bwr_twin.stockpile.history import PileHistory
-    from bwr_twin.stockpile.surface import Surface
 
     recording = Recording.from_run_dir(short_run)
     x, y = np.arange(40.0, 70.0, 0.5), np.arange(-10.0, 15.0, 0.5)

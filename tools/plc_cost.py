@@ -29,9 +29,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 from st_python import counting_real, load_block, read_global_constants  # noqa: E402
 
 from bwr_twin.config.scene import load_scene  # noqa: E402
+from bwr_twin.control.rulebase import load_rule_base  # noqa: E402
 from bwr_twin.export.blocks import rules_cost_bound  # noqa: E402
 from bwr_twin.export.plc import export_plc  # noqa: E402
-from bwr_twin.fis.convert import load_rule_base  # noqa: E402
 from bwr_twin.shipped import SCENES  # noqa: E402
 from bwr_twin.sim.lockstep import simulate  # noqa: E402
 

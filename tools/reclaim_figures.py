@@ -19,10 +19,10 @@ from matplotlib.figure import Figure
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.surface import build_surface
 from bwr_twin.planning.bench import plan_scene
 from bwr_twin.shipped import SCENES
 from bwr_twin.sim.lockstep import simulate
-from bwr_twin.stockpile.surface import build_surface
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = SCENES / "heavy_bench_reclaim.toml"

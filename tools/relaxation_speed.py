@@ -19,12 +19,12 @@ import numpy as np
 
 from bwr_twin.config.scene import WindrowSection
 from bwr_twin.model.machine import Wheel
-from bwr_twin.stockpile.cutting import Cutter
+from bwr_twin.pile.cutting import Cutter
+from bwr_twin.pile.relaxation import Talus, relax
+from bwr_twin.pile.surface import Surface, windrow
 from bwr_twin.stockpile.deposition import footprint
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
-from bwr_twin.stockpile.relaxation import Talus, relax
-from bwr_twin.stockpile.surface import Surface, windrow
 
 SPACING = 0.5  # m
 MATERIAL = Material(bulk_density=2400.0, angle_of_repose=37.0)  # iron ore, as heavy_dig_pile's

@@ -21,10 +21,10 @@ import time
 import numpy as np
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.pile.surface import build_surface
 from bwr_twin.sensing.raycast import cast_rays
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.lockstep import Lockstep, simulate
-from bwr_twin.stockpile.surface import build_surface
 
 
 def rays_figure(seed: int) -> None:

@@ -46,7 +46,7 @@ from bwr_twin.batch.engines import ERROR_FILE, DaskCluster, LocalPool, Outcome
 from bwr_twin.batch.report import PLOTS_DIR, SUMMARY_FILE, RunRecord, spread_table, write_plots, write_summary
 from bwr_twin.config.sweep import MAX_RUNS, PlannedRun, Sweep, load_sweep
 from bwr_twin.errors import BwrError
-from bwr_twin.results.ownership import BATCH_LOCK_FILE, check_output, mark, marker
+from bwr_twin.ownership import BATCH_LOCK_FILE, check_output, mark, marker
 from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, publish_directory, staged_directory
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate

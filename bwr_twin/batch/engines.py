@@ -27,7 +27,7 @@ from typing import Any
 from bwr_twin.batch.report import Status
 from bwr_twin.config.sweep import PlannedRun
 from bwr_twin.errors import BwrError
-from bwr_twin.results.ownership import mark
+from bwr_twin.ownership import mark
 from bwr_twin.results.rundir import SCENE_FILE, write_run
 from bwr_twin.sim.lockstep import simulate_lockstep
 

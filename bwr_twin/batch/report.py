@@ -15,7 +15,7 @@ import numpy as np
 
 from bwr_twin.config.sweep import PlannedRun, Sweep, parameter_label
 from bwr_twin.model.machine import AXES, UNITS, to_display
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import write_atomically
 from bwr_twin.values import is_number
 
 SUMMARY_FILE = "summary.csv"

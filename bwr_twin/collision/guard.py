@@ -31,12 +31,12 @@ import numpy as np
 
 from bwr_twin.collision.machines import MachineClearance
 from bwr_twin.collision.monitor import PileClearance, levers_of
+from bwr_twin.config.plugin_calls import call, checked, construct, describe
 from bwr_twin.config.plugins import interlock_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import PluginError
 from bwr_twin.model.machine import Machine
-from bwr_twin.sim.plugins import call, checked, construct, describe
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.pile.surface import Surface
 
 
 class Guard:

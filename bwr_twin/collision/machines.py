@@ -21,8 +21,8 @@ import numba
 import numpy as np
 
 from bwr_twin.collision.monitor import RECHECK, WATCH, levers_of
-from bwr_twin.collision.shapes import COLLISION_GROUP, PREFIX
 from bwr_twin.model.machine import Machine
+from bwr_twin.model.shapes import COLLISION_GROUP, PREFIX
 from bwr_twin.model.spec import NEIGHBOUR, Edits, compile_model
 
 FLOOR = 0.05  # m: the clearance or depth below which a pair is measured again once moved RECHECK of FLOOR

@@ -17,9 +17,9 @@ import numba
 import numpy as np
 
 from bwr_twin.collision.pile import shape_clearance
-from bwr_twin.collision.shapes import BOX, CollisionShape
 from bwr_twin.model.mount import site_pose
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.model.shapes import BOX, CollisionShape
+from bwr_twin.pile.surface import Surface
 
 WATCH = 10.0  # m: the reach of the check; a shape farther from the pile is reported this far
 RECHECK = 0.02  # of the least clearance measured last: the motion after which a run's shapes are measured again

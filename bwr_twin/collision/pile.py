@@ -16,7 +16,7 @@ import math
 import numba
 import numpy as np
 
-from bwr_twin.collision.shapes import BOX
+from bwr_twin.model.shapes import BOX
 
 SAMPLES = 16  # points along a shape's underside at which it is checked for lying below the surface
 

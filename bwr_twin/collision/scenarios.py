@@ -23,7 +23,7 @@ from bwr_twin.collision.machines import MachineClearance
 from bwr_twin.collision.monitor import WATCH
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import write_atomically
 from bwr_twin.shipped import find_scene
 
 SCENE, INTERLOCKED = "heavy_rail_scenario", "heavy_rail_scenario_interlocked"

@@ -50,8 +50,8 @@ def main(argv: list[str] | None = None) -> int:
 def _compare(args: argparse.Namespace) -> int:
     from bwr_twin.compare.report import write_comparison
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.ownership import check_output
     from bwr_twin.progress import simulated_seconds
-    from bwr_twin.results.ownership import check_output
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.lockstep import simulate_grouped
 

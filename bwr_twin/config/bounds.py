@@ -9,8 +9,8 @@ numbers a typing slip makes (t/m^3 for kg/m^3, radians for degrees) lie far outs
 
 The limits that need the machine (friction, the wheel drive's idle power) are checked against the
 plant's MJCF and its payloads. Where the pile is sampled (the grid spacing against the pile's
-size) the limit is checked as the pile is built (bwr_twin.stockpile.surface), and a pile read
-from a file has its heights checked against PILE_HEIGHT as it is read (bwr_twin.stockpile.surface,
+size) the limit is checked as the pile is built (bwr_twin.pile.surface), and a pile read
+from a file has its heights checked against PILE_HEIGHT as it is read (bwr_twin.pile.surface,
 bwr_twin.stockpile.stacked).
 """
 

@@ -89,7 +89,13 @@ def plugin_class(slot: Slot, name: str) -> type:
 
 
 def controller_class(name: str) -> type:
-    """The controller class a scene's `controller.type` names, its `Settings` a dataclass."""
+    """The controller class a scene's `controller.type` names, its `Settings` a dataclass.
+
+    Imports bwr_twin.fis.convert as well, which adds the .fis reader to the rule base's readers
+    (bwr_twin.control.rulebase.READERS): a fuzzy_model controller's rule base may be a .fis file.
+    """
+    import bwr_twin.fis.convert  # noqa: F401 - its reader of .fis rule bases, added on import
+
     cls = plugin_class(CONTROLLERS, name)
     settings = getattr(cls, "Settings", None)
     if not (isinstance(settings, type) and dataclasses.is_dataclass(settings)):

@@ -158,7 +158,7 @@ class StockpileSection:
     grid_spacing: float = 0.25  # m between height samples: a 0.8 m cut spans three
     windrow: WindrowSection | None = None
     surface_file: Path | None = None  # .npz with x, y (grid lines, m) and z (heights, m), or .csv x,y,z points
-    # deg: the faces the wheel cuts slump to it, volume kept (bwr_twin.stockpile.cutting); None: they stand
+    # deg: the faces the wheel cuts slump to it, volume kept (bwr_twin.pile.cutting); None: they stand
     angle_of_repose: float | None = None
     # How the pile's hfield is drawn in the MuJoCo world (bwr_twin.model.spec), nothing else:
     colour: tuple[float, float, float, float] = (0.55, 0.27, 0.15, 1.0)  # rgba: iron ore's red-brown

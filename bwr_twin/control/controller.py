@@ -19,7 +19,7 @@ import numpy as np
 
 from bwr_twin.control.fuzzy import FuzzySurface, surface_at
 from bwr_twin.control.interface import Controller, ControllerContext, SettingsError
-from bwr_twin.fis.convert import load_rule_base
+from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.signals import ACCELERATION_COMMAND, FUZZY_OUTPUT
 
 Vec3 = tuple[float, float, float]

@@ -2,7 +2,8 @@
 
 The file under scenes/rulebases/ names the sets, the rule table and the universes, each number
 with its source; `RuleBase.digest()` keys the cached control surface of bwr_twin.control.fuzzy.
-A MATLAB .fis file becomes a RuleBase in bwr_twin.fis.convert, which builds on this module.
+A MATLAB .fis file becomes a RuleBase in bwr_twin.fis.convert, which builds on this module and
+adds its reader to READERS; `load_rule_base` picks the reader by the file's suffix.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import hashlib
 import json
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -117,6 +119,19 @@ class RuleBase:
             (float(peaks[max(k - 1, 0)]), float(peaks[k]), float(peaks[min(k + 1, len(peaks) - 1)]))
             for k in range(len(peaks))
         ]
+
+
+# Readers of rule bases in other formats than TOML, by lower-case file suffix: bwr_twin.fis.convert
+# adds ".fis" when imported (bwr_twin.config.plugins.controller_class imports it).
+READERS: dict[str, Callable[[Path], RuleBase]] = {}
+
+
+def load_rule_base(path: str | Path) -> RuleBase:
+    """A rule base file as the fuzzy_model controller reads it: a TOML rule base, or a file in a
+    format READERS holds a reader for (by its suffix)."""
+    path = Path(path)
+    reader = READERS.get(path.suffix.lower())
+    return RuleBase.from_toml(path) if reader is None else reader(path)
 
 
 def _parse(path: Path, data: dict[str, Any]) -> RuleBase:

@@ -23,8 +23,7 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.config.scene_toml import scene_toml
 from bwr_twin.errors import SceneError
 from bwr_twin.export import fmu_slave
-from bwr_twin.results.ownership import FMU_WRITER, check_output
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import FMU_WRITER, check_output, write_atomically
 
 
 def export_fmu(scene: Scene, out: Path) -> Path:

@@ -2,7 +2,7 @@
 
 `python -m bwr_twin.export fmu` packs this file into the FMU with the scene (resources/scene.toml and
 the files it reads); pythonfmu's binary loads it in the importing tool's Python, where `bwr_twin`
-is installed. The machine is `bwr_twin.serve.twin.Twin`, the same one the OPC UA server serves, so
+is installed. The machine is `bwr_twin.sim.twin.Twin`, the same one the OPC UA server serves, so
 the FMU, the server and an in-process loop give one PID the same encoders, bit for bit.
 
 Variables (their units and meanings in OUTPUTS, SETPOINT, TRIM, PARAMETERS), named as the OPC UA
@@ -34,10 +34,10 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.model.instruments import read_instruments
 from bwr_twin.model.spec import compile_model
-from bwr_twin.sensing.instruments import read_instruments
-from bwr_twin.serve.twin import MEASURED, Twin
 from bwr_twin.sim.plant import mujoco_warnings
+from bwr_twin.sim.twin import MEASURED, Twin
 
 SCENE_FILE = "scene.toml"  # in the FMU's resources, beside the files it reads
 AXES = ("Travel", "Slew", "Luff")

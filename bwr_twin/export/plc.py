@@ -35,11 +35,11 @@ from bwr_twin.export.blocks import (
     rules_cost_bound,
     surface_globals,
 )
+from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.export.plcopen import project_xml
 from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, block_text, globals_text
-from bwr_twin.fis.convert import load_rule_base
 from bwr_twin.model.machine import Machine
-from bwr_twin.results.ownership import check_output
+from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import staged_directory
 
 PID_BLOCK = "FB_BwrPid"

@@ -6,7 +6,7 @@
     writer.py      FuzzySystem -> .fis text, as MATLAB lays it out
     inference.py   Mamdani evaluation as MATLAB's evalfis, vectorised over input rows
     convert.py     FuzzySystem <-> the project's TOML rule base (bwr_twin.control.rulebase), and
-                   load_rule_base: a TOML or .fis file as the fuzzy_model controller's rule base
+                   fis_rule_base: a .fis file as the fuzzy_model controller's rule base
     surface.py     the control surface and membership functions as a picture
     __main__.py    the command line: evaluate, convert, surface
 

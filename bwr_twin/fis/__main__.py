@@ -10,7 +10,7 @@
 
 FILE may also be a TOML rule base or an FCL file (by its suffix). Outputs are written atomically and never over
 the input; an existing OUT is replaced only with --overwrite, and only if bwr_twin.fis wrote it
-(its first line, or a picture's metadata, says so: bwr_twin.results.ownership). A bad file exits
+(its first line, or a picture's metadata, says so: bwr_twin.ownership). A bad file exits
 with status 2 and one line on stderr, 'error: FILE:LINE: what is wrong (the limit)'; nothing is written.
 """
 
@@ -29,7 +29,7 @@ from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import SceneError, exit_status
-from bwr_twin.results.ownership import picture_metadata, text_mark, written_by
+from bwr_twin.ownership import picture_metadata, text_mark, written_by
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 # What a command samples at most, counted before anything is allocated: far beyond any use
@@ -337,7 +337,7 @@ def _surface(path: Path, out: Path, overwrite: bool, output: int, grid: int, poi
     print(f"{out}: control surface of {system.name!r}, output {output} {system.outputs[output - 1].name!r}")
 
 
-WRITER = "bwr_twin.fis"  # the mark of every file convert and surface write (bwr_twin.results.ownership)
+WRITER = "bwr_twin.fis"  # the mark of every file convert and surface write (bwr_twin.ownership)
 
 
 def _count(n: int, noun: str) -> str:
@@ -371,7 +371,7 @@ def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
 
 
 def _write(out: Path, write) -> None:
-    from bwr_twin.results.rundir import write_atomically
+    from bwr_twin.ownership import write_atomically
 
     try:
         write_atomically(out, write)

@@ -9,8 +9,8 @@ it. The TOML's input_points and output_points are skfuzzy's sampling, which a .f
 converting to .fis drops them (a comment says which they were) and converting back writes
 RuleBase's defaults for that number of sets.
 
-`load_rule_base` reads the fuzzy_model controller's rule base, TOML or .fis: the choice sits here,
-above both, so that bwr_twin.control.rulebase knows nothing of .fis.
+`fis_rule_base` reads a .fis file as the fuzzy_model controller's rule base; importing this module
+adds it to bwr_twin.control.rulebase.READERS, so that the rule base knows nothing of .fis.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import json
 import re
 from pathlib import Path
 
-from bwr_twin.control.rulebase import RuleBase
+from bwr_twin.control.rulebase import READERS, RuleBase
 from bwr_twin.errors import SceneError
 from bwr_twin.fis.fcl import fcl_text, read_fcl
 from bwr_twin.fis.fll import fll_text
@@ -222,16 +222,16 @@ def rulebase_toml(rule_base: RuleBase, source: str, system: FuzzySystem | None =
     return "\n".join(out) + "\n"
 
 
-def load_rule_base(path: str | Path) -> RuleBase:
-    """A rule base file as the fuzzy_model controller reads it: a TOML rule base, or a .fis one can
-    express (two inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
-    path = Path(path)
-    if path.suffix.lower() != ".fis":
-        return RuleBase.from_toml(path)
+def fis_rule_base(path: Path) -> RuleBase:
+    """A .fis file as the fuzzy_model controller's rule base, if a RuleBase can express it (two
+    inputs, evenly spaced triangular sets, a full rule table, min/max/centroid)."""
     try:
         return fis_to_rulebase(read_fis(path))
     except SceneError as exc:
         raise SceneError(f"{exc} (as a rule base of the fuzzy_model controller: docs/fis.md)") from None
+
+
+READERS[".fis"] = fis_rule_base
 
 
 def load_system(path: str | Path) -> FuzzySystem:

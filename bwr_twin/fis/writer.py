@@ -68,7 +68,7 @@ def fis_text(system: FuzzySystem, comments: Iterable[str] = ()) -> str:
 
 def write_fis(system: FuzzySystem, path: str | Path, comments: Iterable[str] = ()) -> None:
     """Write the .fis file atomically (a temporary file renamed into place); replaces `path`."""
-    from bwr_twin.results.rundir import write_atomically
+    from bwr_twin.ownership import write_atomically
 
     text = fis_text(system, comments)
     write_atomically(Path(path), lambda temporary: temporary.write_text(text, encoding="utf-8"))

@@ -17,7 +17,7 @@ With `instruments=True` (a scene with a [stockpile] on a machine that has both i
     20       wheel motor current, A                    the current at the wheel drive's rated power
 
 the readings of the last control period (0 before the first), the spans the OPC UA server gives
-as their EURange (bwr_twin.serve.ranges).
+as their EURange (bwr_twin.sim.ranges).
 
 The velocity and acceleration scales are twice the path's peak reference speed and acceleration
 on that axis, and at least what crosses half the envelope in the path's duration (so an axis the
@@ -35,8 +35,8 @@ import numpy as np
 from bwr_twin.errors import ModelError, SceneError
 from bwr_twin.gym.kernels import observe
 from bwr_twin.model.machine import AXES, Machine
-from bwr_twin.serve.ranges import belt_scale_span, wheel_current_span
 from bwr_twin.sim.lockstep import Lockstep
+from bwr_twin.sim.ranges import belt_scale_span, wheel_current_span
 
 OBSERVATION_SIZE = 19
 OBSERVATION_LIMIT = 10.0  # bound of the Box; inside the envelope on the path, entries stay within about 1

@@ -21,12 +21,12 @@ import mujoco
 import numba
 import numpy as np
 
-from bwr_twin.collision.shapes import read_collision_shapes
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.model.dynamics import ChainDynamics
+from bwr_twin.model.instruments import read_instruments
+from bwr_twin.model.scanner import Scanner, read_scanners
+from bwr_twin.model.shapes import read_collision_shapes
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
-from bwr_twin.sensing.instruments import read_instruments
-from bwr_twin.sensing.scanner import Scanner, read_scanners
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
@@ -134,11 +134,11 @@ class Machine:
         identification: the file's `<custom><text>` entries of IDENTIFICATION_KEYS, key -> text
             (only those it has); `name` the `<mujoco model=...>` name.
         scanners: the 2D laser scanners on the machine, its sites named `scanner...` with their
-            `<custom>` numerics (bwr_twin.sensing.scanner); () if it has none.
+            `<custom>` numerics (bwr_twin.model.scanner); () if it has none.
         belt_scale, wheel_motor: the rate instruments its `<custom>` numerics describe
-            (bwr_twin.sensing.instruments), each None if it has none.
+            (bwr_twin.model.instruments), each None if it has none.
         collision_shapes: its collision geoms (group 5, `collision_<part>`,
-            bwr_twin.collision.shapes); () if it has none.
+            bwr_twin.model.shapes); () if it has none.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,

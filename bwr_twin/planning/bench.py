@@ -8,7 +8,7 @@ the end of the pass, and the next pass slews back. After `bench_length` of trave
 slews clear, the travel backs off and the boom steps down to the next bench.
 
 Nothing is assumed of the pile's shape: the planner digs a copy of it with the twin's own cut
-(bwr_twin.stockpile.cutting) as it plans, so it finds the face and the edges of every pass on the
+(bwr_twin.pile.cutting) as it plans, so it finds the face and the edges of every pass on the
 pile as the passes before it leave it, and predicts what each pass reclaims.
 
 The plan (bwr_twin.planning.plan) is a list of segments: `Move`s (smooth joint-space cubics, at
@@ -29,9 +29,10 @@ import numpy as np
 from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
 from bwr_twin.errors import EnvelopeError, SceneError
 from bwr_twin.model.machine import AXES, Machine, describe
+from bwr_twin.pile.cutting import Cutter
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.planning.plan import BenchPlan, Move, Pass, SpeedLaw, end_of
-from bwr_twin.stockpile.cutting import Cutter
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface, build_surface
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 PROBE_STEP = 0.25  # m the wheel moves between cuts when the planner looks for the pile: one grid cell

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import SceneError
-from bwr_twin.stockpile.surface import YARD_FLOOR
+from bwr_twin.pile.ground import YARD_FLOOR
 from bwr_twin.units import KG_PER_T
 
 # A lone cone of the relaxation stands as a regular octagonal pyramid (docs/blending.md): its

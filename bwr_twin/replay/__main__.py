@@ -46,7 +46,7 @@ from bwr_twin.replay.video import (
     speed_option,
     write_video,
 )
-from bwr_twin.results.ownership import check_output
+from bwr_twin.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 

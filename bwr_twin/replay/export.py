@@ -22,6 +22,7 @@ import numpy as np
 import viser
 
 from bwr_twin.errors import BwrError
+from bwr_twin.ownership import HTML_TAG, check_output, write_atomically
 from bwr_twin.replay import readout
 from bwr_twin.replay.charts import charts
 from bwr_twin.replay.export_charts import COLUMN_SHARE, charts_column, readout_data
@@ -30,8 +31,6 @@ from bwr_twin.replay.runs import Run
 from bwr_twin.replay.scan_view import EXPORT, scanned_note
 from bwr_twin.replay.scenery import ASPECT
 from bwr_twin.replay.view import SceneView
-from bwr_twin.results.ownership import HTML_TAG, check_output
-from bwr_twin.results.rundir import write_atomically
 
 EXPORT_SPEED = 10.0  # x real time
 EXPORT_FRAME_RATE = 25.0  # frames per second of playback: smooth at 10x

@@ -24,12 +24,12 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES, Machine, paper_to_world
+from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.planning.follower import Stage
 from bwr_twin.replay.scans import Scans
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.layers import top_grade
-from bwr_twin.stockpile.surface import Surface, build_surface
 
 if TYPE_CHECKING:
     from bwr_twin.sim.record import RunResult

@@ -217,8 +217,8 @@ def known_history(time: np.ndarray, hits: np.ndarray, x: np.ndarray, y: np.ndarr
     [T - period, T) last set, to the heights they left, so that it holds what was known as T
     began (a plan made at T was made on it). The last frame stands at the run's `end` (s) if that
     comes first. Starts unknown (NaN) everywhere."""
+    from bwr_twin.pile.surface import Surface
     from bwr_twin.sensing.survey import Survey
-    from bwr_twin.stockpile.surface import Surface
 
     z_start = np.full((len(y), len(x)), np.nan)
     # Scans of one control period share a time: the survey takes their hits together.

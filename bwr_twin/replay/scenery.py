@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.pile.surface import Surface
 
 ANGLE_OF_REPOSE = np.radians(37.0)  # iron ore fines; sets the slope of the pile's flanks
 RECLAIM_REACH_FRACTION = 0.5  # via points at least this share of the largest lateral reach dig the pile

@@ -4,7 +4,7 @@ The pictures (bwr_twin.replay.video_frames) are rendered offscreen by MuJoCo and
 ffmpeg that the imageio-ffmpeg wheel ships, which encodes them as H.264 in yuv420p (what Chromium
 and every phone play) into an MP4 with its index first, so that it plays while it downloads.
 The file is written under a temporary name and renamed into place only when complete; its
-comment tag marks it as the twin's (bwr_twin.results.ownership), so a later video replaces it
+comment tag marks it as the twin's (bwr_twin.ownership), so a later video replaces it
 and nothing else. The run's N seconds make round(N x fps / speed) frames, from its first record
 to its last. A video that would take more than MAX_HOURS, from the measured cost of its first
 frames, is refused before anything is written.
@@ -23,9 +23,8 @@ import imageio_ffmpeg
 import numpy as np
 
 from bwr_twin.errors import BwrError
+from bwr_twin.ownership import VIDEO_WRITER, check_output, write_atomically, written_by
 from bwr_twin.replay.recording import Recording
-from bwr_twin.results.ownership import VIDEO_WRITER, check_output, written_by
-from bwr_twin.results.rundir import write_atomically
 
 DEFAULT_FPS = 30.0
 DEFAULT_SPEED = 10.0  # simulated seconds per second of video, as the browser's default speed

@@ -41,7 +41,7 @@ from bwr_twin.replay.style import (
     VIA_COLOUR,
     run_colour,
 )
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.pile.surface import Surface
 
 FRAMING_POSES = 9  # poses of the run, evenly in time, that the camera fits in view
 LINE_LINES = 720  # picture lines at which a line is the browser's LINE_WIDTH pixels wide

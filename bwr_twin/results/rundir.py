@@ -21,7 +21,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ import numpy as np
 from bwr_twin.arrays import read_lines
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
-from bwr_twin.results.ownership import check_output, mark
+from bwr_twin.ownership import check_output, mark
 from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM
 from bwr_twin.signals import column_name as signal_column
 from bwr_twin.sim.record import RunResult
@@ -120,23 +120,13 @@ def _umask() -> int:
     return mask
 
 
-def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    """Call write(temporary path), then rename the file into place; no partial file is left."""
-    temporary = path.parent / f".{path.name}.partial-{os.getpid()}"
-    try:
-        write(temporary)
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
-
-
 @contextlib.contextmanager
 def staged_directory(out_dir: Path, *, overwrite: bool = False, kind: str = "run") -> Iterator[Path]:
     """A temporary sibling of `out_dir`, marked as the twin's `kind` of output, that is renamed
     into place only if the block succeeds.
 
     An existing `out_dir` is replaced only if the twin wrote it and `overwrite` is given
-    (bwr_twin.results.ownership), and only once the new one is complete. On any failure the
+    (bwr_twin.ownership), and only once the new one is complete. On any failure the
     temporary directory is removed and `out_dir` is untouched.
     """
     out_dir = Path(out_dir)

@@ -23,7 +23,7 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
-from bwr_twin.sensing.instruments import BeltScaleSpec, WheelMotorSpec
+from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.sensing.noise import PeriodNormals
 
 if TYPE_CHECKING:

@@ -9,7 +9,7 @@ the ray's projection crosses, in order along the ray, and stops at the first cel
 hit: the nearest, since a later cell's points lie farther along the ray. A cell the ray passes
 above (its lowest point over the cell above the cell's highest corner) is skipped untested.
 MuJoCo also meets the hfield box's sides and base, which a ray from above that hits the surface
-never reaches first; the pile's grid has a border of ground (bwr_twin.stockpile.surface), so its
+never reaches first; the pile's grid has a border of ground (bwr_twin.pile.surface), so its
 sides stand 0 m high. `tests/test_sensing.py` checks every distance against `mj_ray`.
 
 The rays of one scan of a profile scanner whose fan stands in a vertical plane share one section

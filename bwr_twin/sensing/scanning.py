@@ -3,7 +3,7 @@
 A scanner's n-th scan is due at n / rate s; it is made at the first control period at or after
 that time (a scanner faster than the control rate scans once a control period). A scan casts
 the fan from the site's world pose for the run's true joint values at the period's start
-(bwr_twin.sensing.scanner), against the pile as that run has dug it until then
+(bwr_twin.model.scanner), against the pile as that run has dug it until then
 (bwr_twin.sensing.raycast). A ray that meets nothing within the scanner's range is a miss; one
 that does has Gaussian range noise of standard deviation `constant + share x range` added, or is
 dropped with the dropout probability (bwr_twin.sensing.noise). Hits are world metres; a missed
@@ -23,14 +23,15 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError, SceneError
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.mount import site_pose
+from bwr_twin.model.scanner import Scanner, read_scanners
 from bwr_twin.model.spec import compile_model
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.noise import ScanNoise
 from bwr_twin.sensing.outputs import KnownPile, ScanLog, ScanRecord
 from bwr_twin.sensing.raycast import grid_of, ray_distance
-from bwr_twin.sensing.scanner import Scanner, read_scanners
 from bwr_twin.sensing.survey import Survey
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
 from bwr_twin.textfile import version
 
 _DUE = 1e-9  # s: a scan due within this of a period's time is due at that period (rounding of n / rate)

@@ -14,7 +14,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface
 from bwr_twin.units import KG_PER_T
 
 

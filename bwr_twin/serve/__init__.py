@@ -1,9 +1,9 @@
 """The twin as an OPC UA server: one run of a scene is the machine, a PLC (the client) computes
-the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.md.
+the drive forces. `python -m bwr_twin.serve SCENE`; the contract is docs/opcua.md. The machine
+is bwr_twin.sim.twin (one run, advanced a control period at a time), each analog variable's
+EURange bwr_twin.sim.ranges (from the MJCF or a documented rule); the FMU serves the same twin.
 
-    twin.py           the machine: one run, advanced a control period at a time
     address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
-    ranges.py         each analog variable's EURange, from the MJCF or a documented rule
     machinery.py      OPC 40001-1: Objects/Machines, Identification, MachineryItemState, operation mode
     alarms.py         limit switches and watchdog trips as alarm events on Objects/Reclaimer
     sensing.py        the scanners' latest profiles and the faults' states, where the run has them

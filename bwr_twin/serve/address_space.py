@@ -4,7 +4,7 @@ Every variable is one row of `MACHINE_VARIABLES` or `AXIS_VARIABLES`: its browse
 unit and meaning. The server publishes a variable from the value of the same name in the
 readings it is given (`AddressSpace.publish`), so a new machine-level variable is one row here
 and one value in the readings. A Double is an analog item of OPC UA Part 8 (AnalogUnitType,
-or AnalogItemType without a unit) with its EURange, given to `build` (bwr_twin.serve.ranges).
+or AnalogItemType without a unit) with its EURange, given to `build` (bwr_twin.sim.ranges).
 The rows of `INSTRUMENT_VARIABLES` are served only by a run that has the instrument, those of
 `NEIGHBOUR_VARIABLES` and `NEIGHBOUR_AXIS_VARIABLES` only by one with a second machine on the
 rail; the scanners' profiles and the faults' states are `bwr_twin.serve.sensing`'s.

@@ -80,7 +80,7 @@ def _serve(args: argparse.Namespace) -> int:
     scene_path = find_scene(args.scene)  # before the imports of asyncua and MuJoCo: bad input answers at once
 
     from bwr_twin.config.scene import load_scene
-    from bwr_twin.results.ownership import check_output
+    from bwr_twin.ownership import check_output
     from bwr_twin.run import scene_overrides
     from bwr_twin.serve.announce import is_loopback
     from bwr_twin.serve.certificates import check_certificate

@@ -20,7 +20,7 @@ from asyncua import ua
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
 from bwr_twin.serve.address_space import AddressSpace
 from bwr_twin.serve.machinery import item_state
-from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.twin import Twin
 
 YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a turn (real time: a pause as long)
 

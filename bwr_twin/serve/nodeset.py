@@ -3,7 +3,7 @@ or another server to load (asyncua's XmlExporter: every node of the twin's names
 values included, so that EURange and the identification travel with it).
 
 The file's second line marks it as the twin's, `<!-- written by bwr_twin.serve -->`, right after
-the XML declaration (bwr_twin.results.ownership): only such a file is replaced, and only with
+the XML declaration (bwr_twin.ownership): only such a file is replaced, and only with
 --overwrite.
 """
 
@@ -16,8 +16,7 @@ from asyncua import Server
 from asyncua.common.ua_utils import get_nodes_of_namespace
 from asyncua.common.xmlexporter import XmlExporter
 
-from bwr_twin.results.ownership import NODESET_WRITER, check_output, xml_mark
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import NODESET_WRITER, check_output, write_atomically, xml_mark
 from bwr_twin.serve import ServeError
 
 

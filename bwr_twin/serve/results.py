@@ -11,16 +11,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bwr_twin.errors import BwrError
-from bwr_twin.results.ownership import check_output
+from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import write_run
-from bwr_twin.serve.twin import Twin
+from bwr_twin.sim.twin import Twin
 
 
 class RunWriter:
     """Writes each completed run to `out` (replacing only what it or an earlier run wrote)."""
 
     def __init__(self, out: Path, *, overwrite: bool, plots: bool, inputs, log: Callable[[str], None]):
-        """Raises BwrError at once if `out` may not be written (see bwr_twin.results.ownership)."""
+        """Raises BwrError at once if `out` may not be written (see bwr_twin.ownership)."""
         check_output(out, "run", overwrite=overwrite, inputs=inputs)
         self.out, self._overwrite, self._plots, self._log = out, overwrite, plots, log
         self._lock = asyncio.Lock()

@@ -25,8 +25,8 @@ from asyncua import Node, ua
 from bwr_twin.config.faults import FaultSection
 from bwr_twin.serve import nodes
 from bwr_twin.serve.address_space import AddressSpace, B, D, U, Variable, data_value
-from bwr_twin.serve.ranges import scanner_ranges
-from bwr_twin.serve.twin import LatestScan, Twin
+from bwr_twin.sim.ranges import scanner_ranges
+from bwr_twin.sim.twin import LatestScan, Twin
 
 RANGES = Variable("Ranges", D, "m", "the scanner's latest profile: per ray, the distance from the scanner's origin "
                   "to where the ray met the pile, NaN where nothing returned; its time is ScanTime")

@@ -22,12 +22,12 @@ from bwr_twin.serve.announce import exposure_lines, is_loopback
 from bwr_twin.serve.clock import Clock
 from bwr_twin.serve.machinery import Machinery
 from bwr_twin.serve.nodeset import write_nodeset
-from bwr_twin.serve.ranges import eu_ranges
 from bwr_twin.serve.results import RunWriter
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.sensing import Sensing
-from bwr_twin.serve.twin import Twin
 from bwr_twin.sim.plant import mujoco_warnings
+from bwr_twin.sim.ranges import eu_ranges
+from bwr_twin.sim.twin import Twin
 
 APPLICATION_URI = "urn:bwr_twin:serve"  # a server certificate's subjectAltName URI must be this
 

@@ -15,6 +15,7 @@ from bwr_twin.config.faults import check_fault_scanners
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.surface import build_surface
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import RateInstruments, rate_instruments, rate_loop_reads_instruments
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
@@ -27,7 +28,6 @@ from bwr_twin.sim.plant import Plant
 from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.stacking import Stacking
-from bwr_twin.stockpile.surface import build_surface
 
 
 @dataclass

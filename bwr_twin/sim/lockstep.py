@@ -24,6 +24,7 @@ from collections.abc import Callable, Sequence
 import numba
 import numpy as np
 
+from bwr_twin.config.plugin_calls import call, checked, construct, describe
 from bwr_twin.config.plugins import controller_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.interface import Controller, ControllerContext, shared_settings
@@ -34,7 +35,6 @@ from bwr_twin.sim.block import BLOCK, Block, read_only
 from bwr_twin.sim.observer import Observer
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import mujoco_warnings
-from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.sim.record import RunResult
 from bwr_twin.sim.stages import Hooks
 

@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from bwr_twin.config.plugin_calls import call, checked, construct, describe
 from bwr_twin.config.plugins import rate_control_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.rate import RateSignals, WheelCalibration
@@ -28,7 +29,6 @@ from bwr_twin.planning.stacking import plan_stacking
 from bwr_twin.planning.trajectory import Trajectory
 from bwr_twin.sensing.rate_instruments import RateInstruments
 from bwr_twin.sim.outcome import PlanOutcome
-from bwr_twin.sim.plugins import call, checked, construct, describe
 from bwr_twin.stockpile.reclaim import Reclaim
 
 

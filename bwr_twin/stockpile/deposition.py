@@ -6,7 +6,7 @@ grade, and the pile then relaxes to the angle of repose. Bilinear, not the one c
 point: a discharge point moving with the stacker then lays its material continuously instead of
 jumping from cell to cell, and the footprint's centroid is the point itself. Deposited long enough
 at one point, the material grows a cone at the angle of repose (an octagonal one on the grid,
-bwr_twin.stockpile.relaxation).
+bwr_twin.pile.relaxation).
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bwr_twin.pile.relaxation import DEFAULT_MAX_ROUNDS, DEFAULT_TOLERANCE, Relaxed, Talus
+from bwr_twin.pile.surface import Surface
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
-from bwr_twin.stockpile.relaxation import DEFAULT_MAX_ROUNDS, DEFAULT_TOLERANCE, Relaxed, Talus
-from bwr_twin.stockpile.surface import Surface
 from bwr_twin.units import SECONDS_PER_HOUR
 
 

@@ -51,7 +51,7 @@ class DiggingLoad:
         self.joint_force = np.zeros((runs, 3))
 
     def step(self, q: np.ndarray, cp: np.ndarray, cut) -> np.ndarray | None:
-        """The load of a period whose cut (bwr_twin.stockpile.cutting.Cut) the wheels at joint
+        """The load of a period whose cut (bwr_twin.pile.cutting.Cut) the wheels at joint
         values q and CPs cp (runs, 3) made: `joint_force`, or None when no wheel digs."""
         loaded = _load(q, cp, cut.volume, cut.centroid, cut.side, *self._per_run, *self._constants,
                        self._dug_rate, self._arm, self._side, self.power, self.force, self.force_max,

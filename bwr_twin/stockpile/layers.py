@@ -31,8 +31,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from bwr_twin.stockpile.relaxation import DEFAULT_MAX_ROUNDS, Relaxed, Talus, relax
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
+from bwr_twin.pile.relaxation import DEFAULT_MAX_ROUNDS, Relaxed, Talus, relax
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface
 
 DEFAULT_MAX_LAYERS = 32  # a column's layers, 16 bytes each: 0.5 MB a thousand cells
 
@@ -156,7 +157,7 @@ class LayeredPile:
         return volume * self.cell_area, grade_volume * self.cell_area
 
     def relax(self, talus: Talus, max_rounds: int = DEFAULT_MAX_ROUNDS) -> Relaxed:
-        """Relax the pile to the angle of repose (bwr_twin.stockpile.relaxation), `talus` made
+        """Relax the pile to the angle of repose (bwr_twin.pile.relaxation), `talus` made
         for its grid: the heights slump, and each move carries the top of the higher column,
         layers and grades, onto the lower one, in the order the heights moved."""
         if not math.isclose(talus.spacing, self.spacing, rel_tol=1e-9):

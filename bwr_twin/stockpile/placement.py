@@ -8,7 +8,7 @@ import numpy as np
 
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
-from bwr_twin.stockpile.surface import Surface
+from bwr_twin.pile.surface import Surface
 
 
 def check_placement(surface: Surface, machine: Machine, scene_path: Path) -> None:

@@ -5,7 +5,7 @@ the one owner of the piles' heights), the bucket and belt (`Conveyor`), the digg
 On a stacked pile (bwr_twin.stockpile.stacked) each run's layers follow its heights: the cells
 the wheel lowered give up their layers from the top, and the grade of what was cut goes into the
 bucket with it; `blend_metrics` says what left the pile against what was stacked. With a
-`stockpile.angle_of_repose`, the faces the cut leaves slump after it (bwr_twin.stockpile.cutting),
+`stockpile.angle_of_repose`, the faces the cut leaves slump after it (bwr_twin.pile.cutting),
 the layers carried along with them.
 """
 
@@ -20,15 +20,15 @@ import numpy as np
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.cutting import Cut, Cutter
+from bwr_twin.pile.surface import Surface, is_stacked_pile
 from bwr_twin.stockpile.conveyor import Conveyor
-from bwr_twin.stockpile.cutting import Cut, Cutter
 from bwr_twin.stockpile.digging import DiggingLoad
 from bwr_twin.stockpile.grade import lots, rms_from, tonne_weighted
 from bwr_twin.stockpile.history import PileFrames
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.stacked import read_stacked
-from bwr_twin.stockpile.surface import Surface, is_stacked_pile
 from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
 
 

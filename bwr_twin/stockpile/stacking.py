@@ -19,6 +19,7 @@ import numpy as np
 
 from bwr_twin.config.scene import GradeSection, Scene
 from bwr_twin.model.machine import Machine
+from bwr_twin.pile.relaxation import Talus
 from bwr_twin.planning.patterns import equivalent_layers
 from bwr_twin.planning.stacking import StackingPlan
 from bwr_twin.stockpile.deposition import discharge, height_under
@@ -26,7 +27,6 @@ from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade, tonne_weighted
 from bwr_twin.stockpile.history import PileFrames, PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
-from bwr_twin.stockpile.relaxation import Talus
 
 GRADE_STREAM = 6  # the SeedSequence child of a run's seed its grade stream draws from
 

@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _interrupt)
 
     from bwr_twin.config.tuning import load_tuning
-    from bwr_twin.results.ownership import check_output, mark, marker
+    from bwr_twin.ownership import check_output, mark, marker
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.budget import check_estimate
     from bwr_twin.tune.cost import budget_estimate

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from bwr_twin.config.scene_toml import scene_toml
 from bwr_twin.config.tuning import Tuning
 from bwr_twin.model.machine import AXES, UNITS, to_display
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import write_atomically
 from bwr_twin.tune.scalar import search_name
 
 HELD_OUT_METRICS = ("position_error_max", "position_error_rms", "velocity_error_max", "drive_force_rms")

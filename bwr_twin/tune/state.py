@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from bwr_twin.errors import BwrError
-from bwr_twin.results.rundir import write_atomically
+from bwr_twin.ownership import write_atomically
 
 STATE_FILE = "tuner_state.pkl"
 

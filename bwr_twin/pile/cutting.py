@@ -10,7 +10,7 @@ wide, cells are lowered a little each period, and the same material is cut, a li
 The heights only ever fall, so the volume the pile loses is exactly the sum of the volumes cut.
 
 A Cutter given the material's angle of repose (a scene's `stockpile.angle_of_repose`) then lets
-the faces it cut slump (`slump`, bwr_twin.stockpile.relaxation), beginning from the cells it
+the faces it cut slump (`slump`, bwr_twin.pile.relaxation), beginning from the cells it
 lowered: the slump only moves material, so the volume the pile loses is still what was cut. The slumped
 material lands where the wheel is and is cut in the periods that follow, as a real face falls
 into the wheel.
@@ -29,8 +29,9 @@ import numba
 import numpy as np
 
 from bwr_twin.model.machine import Wheel
-from bwr_twin.stockpile.relaxation import Relaxed, Talus, relax
-from bwr_twin.stockpile.surface import YARD_FLOOR, Surface
+from bwr_twin.pile.relaxation import Relaxed, Talus, relax
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.surface import Surface
 
 CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again
 

@@ -18,9 +18,10 @@ from bwr_twin.arrays import Member, check_within, first_false, load_npz, npz_key
 from bwr_twin.config.bounds import PILE_HEIGHT, PILE_HEIGHT_SOURCE
 from bwr_twin.config.scene import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
+from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.stacked_file import stacked_arrays
 from bwr_twin.values import reads_as_number
 
-YARD_FLOOR = 0.0  # m, world Z of the ground the pile stands on: nothing lies, or is dug, below it
 MAX_CELLS = 20_000_000  # 160 MB a run of float64 heights: a bigger grid is a typo in grid_spacing
 STACKED_KEY = "layer_thickness"  # the array that makes a pile.npz a stacked pile's (bwr_twin.stockpile.stacked)
 # The fewest grid cells across a pile's footprint, both ways. Sampled 8 cells across, a windrow of
@@ -189,8 +190,6 @@ def is_stacked_pile(file: Path | None) -> bool:
 def _read_npz(file: Path, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     keys = npz_keys(file)
     if STACKED_KEY in keys:  # a stacked pile: its layers are checked against its heights before any use
-        from bwr_twin.stockpile.stacked import stacked_arrays  # which builds on this module
-
         stacked_arrays(file, where)
     heights = "z_end" if STACKED_KEY in keys and "z" not in keys else "z"  # a stacked pile as it ended
     arrays = load_npz(file, {"x": _GRID, "y": _GRID, heights: _HEIGHTS}, what=where, error=SceneError,

@@ -11,7 +11,7 @@ declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the val
 moov/udta/meta/ilst/(c)cmt box, where ffmpeg's `-metadata comment=WRITER` puts it) is exactly
 WRITER. Text that merely mentions the writer anywhere else does not count. `check_output` is
 asked before any work starts and again just before anything is replaced, so that a refusal costs
-nothing and loses nothing.
+nothing and loses nothing; `write_atomically` then puts a file in place whole or not at all.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import os
 import re
 import struct
 import zipfile
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from bwr_twin.errors import BwrError
@@ -260,3 +260,13 @@ def _check_writable(folder: Path, option: str) -> None:
         raise BwrError(f"{folder}: is a file, so {option} cannot be made inside it")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise BwrError(f"{folder}: is not writable (permission denied); choose another {option}")
+
+
+def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """Call write(temporary path), then rename the file into place; no partial file is left."""
+    temporary = path.parent / f".{path.name}.partial-{os.getpid()}"
+    try:
+        write(temporary)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
