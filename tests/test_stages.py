@@ -1,0 +1,73 @@
+"""The loop walks a list of stages: each scene gets the stages it names, in the period's order,
+and the loop calls a stage only for the hooks it implements."""
+
+import numpy as np
+from conftest import write_short_scene
+
+from bwr_twin.config.scene import load_scene
+from bwr_twin.shipped import find_scene
+from bwr_twin.sim import stages
+from bwr_twin.sim.assembly import assemble
+from bwr_twin.sim.lockstep import SECTIONS, Lockstep, simulate
+
+
+class Counting(stages.Stage):
+    def __init__(self):
+        self.calls = []
+
+    def world(self, k, row):
+        self.calls.append(("world", k))
+
+    def finish(self, k):
+        self.calls.append(("finish", k))
+
+
+def test_the_hooks_hold_only_the_stages_that_implement_them_in_order():
+    first, second, bare = Counting(), Counting(), stages.Stage()
+    hooks = stages.Hooks.of([first, bare, second])
+    assert hooks.world == (first, second) and hooks.finish == (first, second)
+    assert hooks.measure == hooks.drives == hooks.stepped == hooks.metrics == hooks.result == ()
+
+
+def names(scene_name: str, overrides: dict | None = None) -> list[str]:
+    scene = load_scene(find_scene(scene_name), overrides)
+    return [type(s).__name__ for s in assemble([scene], nthread=1).stages]
+
+
+def test_a_path_scene_has_only_the_encoders_and_the_disturbances():
+    assert names("paper_individual_gains") == ["EncoderReading", "DisturbanceForces"]
+
+
+def test_a_scanned_bench_reclaim_with_faults_has_its_stages_in_the_periods_order():
+    faults = [{"kind": "encoder_stuck", "axis": "slew", "start": 100.0, "duration": 5.0},
+              {"kind": "drive_trip", "axis": "luff", "start": 200.0, "duration": 1.0}]
+    assert names("heavy_scanned_reclaim", {"faults": faults}) == [
+        "EncoderReading", "OwnReferences", "EncoderFaults", "DisturbanceForces", "ScanningStage", "PileClearanceStage",
+        "ReclaimStage", "RateInstrumentReading", "FaultsOnDrives"]
+    assert "EncoderFaults" not in names("heavy_scanned_reclaim")  # a scene has only the stages it names
+
+
+def test_two_machines_under_an_interlock_hear_the_neighbour_before_the_interlock_decides():
+    trip = [{"kind": "drive_trip", "axis": "travel", "start": 10.0, "duration": 1.0}]
+    order = names("heavy_two_machines_interlocked", {"faults": trip})
+    assert order.index("NeighbourMachine") < order.index("InterlockStage")
+    assert order[:2] == ["EncoderReading", "OwnReferences"]  # each run's paced path kept before it moves on
+    assert order[-2:] == ["InterlockStage", "FaultsOnDrives"]  # a trip overrides the quick stop: the last word
+
+
+def test_a_stage_is_called_every_period_and_once_at_the_end(tmp_path):
+    loop = Lockstep([load_scene(write_short_scene(tmp_path))], nthread=1)
+    counting = Counting()
+    loop._hooks = stages.Hooks.of([*loop._parts.stages, counting])
+    while not loop.done:
+        loop.measure()
+        loop.advance(np.zeros((1, 3)))
+    assert [k for hook, k in counting.calls if hook == "world"] == list(range(loop.samples))
+    assert [call for call in counting.calls if call[0] == "finish"] == [("finish", loop.samples)]
+
+
+def test_metrics_sections_follow_the_output_contracts_order():
+    result = simulate(load_scene(find_scene("heavy_dig_pile")))
+    sections = [key for key in result.metrics if key in SECTIONS]
+    assert sections == [s for s in SECTIONS if s in result.metrics] and sections[-1] == "run"
+    assert list(result.metrics)[-len(sections):] == sections  # after the loop's own
