@@ -151,7 +151,7 @@ def test_a_scan_walks_the_pile_s_section_once_and_finds_what_each_ray_s_whole_wa
     rng = np.random.default_rng(5)
     q = np.column_stack([rng.uniform(-10, 40, 40), rng.uniform(10, 80, 40) * DEG, rng.uniform(-2, 8, 40) * DEG])
     for scanner in (upright, tilted):
-        scanning = Scanning([scanner], surface, [1], 0.04, np.array([2400.0]))
+        scanning = Scanning([scanner], surface, [1], 0.04)
         heights = surface.z[None].copy()
         for k in range(len(q)):
             scanning.step(k, q[k:k + 1], heights, None)
@@ -243,7 +243,7 @@ def _ramp(slope: float, base: float, spacing: float = 0.5, half: float = 30.0) -
 
 
 def _scan_once(scanner: Scanner, surface: Surface, seeds=(1,), period: float = 0.01) -> Scanning:
-    scanning = Scanning([scanner], surface, list(seeds), period, np.full(len(seeds), 2400.0))
+    scanning = Scanning([scanner], surface, list(seeds), period)
     heights = np.repeat(surface.z[None], len(seeds), axis=0)
     assert scanning.step(0, np.zeros((len(seeds), 3)), heights, None)
     return scanning
@@ -261,7 +261,7 @@ def test_a_scan_of_a_flat_pile_hits_where_the_geometry_says():
     np.testing.assert_allclose(record.hits[0][reach], expected[reach], rtol=0, atol=1e-5)  # float32 hits
     assert np.isnan(record.hits[0][~reach]).all() and (~reach).sum() == 8  # |a| > 24.6 deg
     np.testing.assert_array_equal(record.origin[0], [0.0, 0.0, 12.0])
-    assert scanning.metrics(0, _ramp(0.0, 2.0).z)["hit_share"] == pytest.approx(reach.mean())
+    assert scanning.metrics(0, _ramp(0.0, 2.0).z, 2400.0)["hit_share"] == pytest.approx(reach.mean())
 
 
 def test_a_scan_of_a_wedge_hits_where_the_geometry_says():
@@ -280,7 +280,7 @@ def test_noise_and_dropouts_are_what_the_numbers_say_and_the_seed_alone_decides_
     scanner = _scanner(noise=(constant, share), dropout=dropout)
     surface = _ramp(0.0, 2.0)
     scans = 2000
-    scanning = Scanning([scanner], surface, [11], 0.01, np.array([2400.0]))
+    scanning = Scanning([scanner], surface, [11], 0.01)
     heights = surface.z[None].copy()
     for k in range(scans):
         scanning.step(k, np.zeros((1, 3)), heights, None)
@@ -295,10 +295,10 @@ def test_noise_and_dropouts_are_what_the_numbers_say_and_the_seed_alone_decides_
     assert abs(dropped.mean() - dropout) < 4 * np.sqrt(dropout * (1 - dropout) / dropped.size)
     assert abs(z_score.mean()) < 4 / np.sqrt(n)
     assert abs(z_score.std() - 1.0) < 4 / np.sqrt(2 * n)
-    metrics = scanning.metrics(0, heights[0])
+    metrics = scanning.metrics(0, heights[0], 2400.0)
     assert metrics["dropped_share"] == pytest.approx(dropped.mean())
     # The same seed gives the same scans, alone and among other runs of a lockstep.
-    together = Scanning([scanner], surface, [3, 11, 5], 0.01, np.full(3, 2400.0))
+    together = Scanning([scanner], surface, [3, 11, 5], 0.01)
     stacked = np.repeat(heights, 3, axis=0)
     for k in range(scans):
         together.step(k, np.zeros((3, 3)), stacked, None)
@@ -308,7 +308,7 @@ def test_noise_and_dropouts_are_what_the_numbers_say_and_the_seed_alone_decides_
 
 def test_a_scanner_scans_at_its_rate_on_the_control_period_grid():
     """30 Hz on a 0.01 s control period: scan n at the first period at or after n / 30 s."""
-    scanning = Scanning([_scanner(rate=30.0)], _ramp(0.0, 2.0), [1], 0.01, np.array([2400.0]))
+    scanning = Scanning([_scanner(rate=30.0)], _ramp(0.0, 2.0), [1], 0.01)
     heights = _ramp(0.0, 2.0).z[None].copy()
     made = [k for k in range(301) if scanning.step(k, np.zeros((1, 3)), heights, None)]
     expected = [math.ceil(n / 30 / 0.01 - 1e-9) for n in range(91)]

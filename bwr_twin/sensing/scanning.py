@@ -97,15 +97,14 @@ class Scanning:
             rays that met the pile but were dropped, so far.
     """
 
-    def __init__(self, scanners: Sequence[Scanner], surface: Surface, seeds: Sequence[int], period: float,
-                 density: np.ndarray, *, keep_scans: bool = True, faults: Faults | None = None):
-        """`seeds` and `density` (kg/m^3): each run's; `keep_scans=False` keeps only the latest scan
+    def __init__(self, scanners: Sequence[Scanner], surface: Surface, seeds: Sequence[int], period: float, *,
+                 keep_scans: bool = True, faults: Faults | None = None):
+        """`seeds`: each run's; `keep_scans=False` keeps only the latest scan
         (a lockstep that keeps no results: its memory stays bounded); `faults`: the scene's, of
         which dust blinds a scanner (bwr_twin.sensing.faults)."""
         self._faults = faults
         runs = len(seeds)
         self.scanners, self.surface, self.period = tuple(scanners), surface, period
-        self.density = np.asarray(density, dtype=float)
         self.survey = Survey(surface, runs, sum(s.rays for s in scanners))
         # Heights only fall: the top a ray must consider is the pile's first.
         self._grid = grid_of(surface.x, surface.y, surface.z, YARD_FLOOR, float(surface.z.max()))
@@ -120,9 +119,6 @@ class Scanning:
         self._counts = np.zeros((runs, 4), dtype=np.int64)
         self.scans, self.rays, self.hits, self.dropped = self._counts.T
         self._all = np.arange(runs)
-        self.first_cut: list[dict | None] = [None] * runs  # the scanned pile when the run's wheel first cut
-        self.plan_start: list[dict | None] = [None] * runs  # ... as the benches were planned, after a survey
-        self._known_at_plan: list[KnownPile | None] = [None] * runs
 
     def step(self, k: int, q: np.ndarray, heights: np.ndarray, runs: np.ndarray | None) -> bool:
         """Scan with every scanner due at control period k, the runs' true joint values q (runs, 3)
@@ -153,29 +149,9 @@ class Scanning:
             self.survey.add(time, made[0] if len(made) == 1 else np.concatenate(made, axis=1), order)
         return bool(made)
 
-    @property
-    def awaiting_first_cut(self) -> bool:
-        """Whether a run's wheel has yet to cut."""
-        return None in self.first_cut
-
-    def note_first_cut(self, time: float, cut: np.ndarray, heights: np.ndarray) -> None:
-        """Keep the scanned pile's tonnes against the truth (heights (runs, ny, nx) m) for the
-        runs whose wheel has cut (`cut` (runs,) bool) and had not before, at `time` s."""
-        for run in np.flatnonzero(cut):
-            if self.first_cut[run] is None:
-                self.first_cut[run] = {"time_s": time, **self.survey.tonnes(run, heights[run], self.density[run])}
-
-    def note_plan_start(self, time: float, heights: np.ndarray) -> None:
-        """Keep every run's scanned pile, and its tonnes against the truth (heights (runs, ny, nx)
-        m), as the survey ends and the benches are planned, at `time` s."""
-        survey = self.survey
-        for run in range(len(self.plan_start)):
-            self.plan_start[run] = {"time_s": time, **survey.tonnes(run, heights[run], self.density[run])}
-            self._known_at_plan[run] = KnownPile(time, survey.z[run].copy(), survey.seen[run].copy(),
-                                                 survey.last_seen[run].copy())
-
-    def metrics(self, run: int, heights: np.ndarray) -> dict:
-        """metrics.json's `scan` object of `run`, whose pile now stands at heights (ny, nx) m."""
+    def metrics(self, run: int, heights: np.ndarray, density: float) -> dict:
+        """The scans' share of metrics.json's `scan` object of `run`, whose pile now stands at
+        heights (ny, nx) m, of `density` kg/m^3."""
         rays = int(self.rays[run])
         return {
             "scanners": [s.name for s in self.scanners],
@@ -183,17 +159,18 @@ class Scanning:
             "rays": rays,
             "hit_share": int(self.hits[run]) / rays if rays else None,
             "dropped_share": int(self.dropped[run]) / met if (met := int(self.hits[run] + self.dropped[run])) else None,
-            **self.survey.tonnes(run, heights, self.density[run]),
-            "first_cut": self.first_cut[run],
-            "plan_start": self.plan_start[run],
+            **self.survey.tonnes(run, heights, density),
         }
 
-    def record(self, run: int, time: float = math.nan) -> ScanRecord:
-        """Run `run`'s scans, and its scanned pile at the end, `time` s, and at the plan's start."""
+    def known(self, run: int, time: float) -> KnownPile:
+        """Run `run`'s scanned pile as it stands, at `time` s."""
         survey = self.survey
-        end = KnownPile(time, survey.z[run].copy(), survey.seen[run].copy(), survey.last_seen[run].copy())
+        return KnownPile(time, survey.z[run].copy(), survey.seen[run].copy(), survey.last_seen[run].copy())
+
+    def record(self, run: int, time: float = math.nan, at_plan: KnownPile | None = None) -> ScanRecord:
+        """Run `run`'s scans, its scanned pile at the end, `time` s, and at the plan's start."""
         return ScanRecord.of(self.scanners, [log.share(run) for log in self.logs], self.surface.x, self.surface.y,
-                             end, self._known_at_plan[run])
+                             self.known(run, time), at_plan)
 
 
 @numba.njit(cache=True)

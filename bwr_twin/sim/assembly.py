@@ -18,6 +18,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.pile.surface import build_surface
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import RateInstruments, rate_instruments, rate_loop_reads_instruments
+from bwr_twin.sensing.scan_account import ScanAccount
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
 from bwr_twin.sim import stages
 from bwr_twin.sim.disturbances import Disturbances
@@ -27,6 +28,7 @@ from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant
 from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
+from bwr_twin.stockpile.reclaim_account import ReclaimAccount
 from bwr_twin.stockpile.stacking import Stacking
 
 
@@ -66,9 +68,9 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     scanners = active_scanners(scene, machine) if surface is not None else ()
     check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
     instruments = rate_instruments(scene, machine, parameters.seed, period)
-    reclaim = Reclaim(scenes, machine, surface, period, frame_every) if surface is not None else None
-    scanning = (Scanning(scanners, surface, parameters.seed, period, reclaim.density, keep_scans=keep_scans,
-                         faults=faults) if scanners else None)
+    reclaim = Reclaim(scenes, machine, surface, period) if surface is not None else None
+    scanning = (Scanning(scanners, surface, parameters.seed, period, keep_scans=keep_scans, faults=faults)
+                if scanners else None)
     if scene.reclaim is not None:
         scanned = pile_model(scene, scanners) == "scanned"
         measured = rate_loop_reads_instruments(scene, machine)
@@ -94,8 +96,8 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
         order.append(stages.NeighbourMachine(neighbour, plant))
     order.append(stages.DisturbanceForces(Disturbances(parameters, period)))
     if scanning is not None:
-        order.append(stages.ScanningStage(scanning, reclaim, plant, tracking.survey_end,
-                                          (tracking.samples - 1) * period))
+        order.append(stages.ScanningStage(scanning, ScanAccount(scanning, reclaim.density), reclaim, plant,
+                                          tracking.survey_end, (tracking.samples - 1) * period))
     if reclaim is not None and machine.collision_shapes:
         order.append(stages.PileClearanceStage(PileClearance(machine.collision_shapes, surface, runs, period),
                                                reclaim, plant))
@@ -109,7 +111,7 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     if stacking is not None:
         order.append(stages.StackingStage(stacking, plant))
     if reclaim is not None:
-        order.append(stages.ReclaimStage(reclaim, plant))
+        order.append(stages.ReclaimStage(reclaim, ReclaimAccount(reclaim, frame_every), plant))
         if instruments is not None:
             order.append(stages.RateInstrumentReading(instruments, reclaim, faults))
     if scene.interlock is not None:

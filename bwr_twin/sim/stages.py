@@ -34,6 +34,7 @@ from bwr_twin.collision.monitor import WATCH, PileClearance
 from bwr_twin.config.scene import Scene
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import RateInstruments
+from bwr_twin.sensing.scan_account import ScanAccount
 from bwr_twin.sensing.scanning import Scanning
 from bwr_twin.sim.block import Row
 from bwr_twin.sim.disturbances import Disturbances
@@ -43,6 +44,7 @@ from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.plant import Plant
 from bwr_twin.sim.record import ReclaimRecord, Recorder, RunResult
 from bwr_twin.stockpile.reclaim import Reclaim
+from bwr_twin.stockpile.reclaim_account import ReclaimAccount
 from bwr_twin.stockpile.stacking import Stacking
 
 
@@ -150,26 +152,28 @@ class NeighbourMachine(Stage):
 
 
 class ScanningStage(Stage):
-    """The boom's scanners on the pile as dug until this period, and the scanned pile's notes."""
+    """The boom's scanners on the pile as dug until this period (bwr_twin.sensing.scanning), and
+    their account's notes of the scanned pile (bwr_twin.sensing.scan_account)."""
 
-    def __init__(self, scanning: Scanning, reclaim: Reclaim, plant: Plant, survey_end: int | None, duration: float):
-        self._scanning, self._reclaim, self._plant = scanning, reclaim, plant
+    def __init__(self, scanning: Scanning, account: ScanAccount, reclaim: Reclaim, plant: Plant,
+                 survey_end: int | None, duration: float):
+        self._scanning, self._account, self._reclaim, self._plant = scanning, account, reclaim, plant
         self._survey_end, self._duration, self._period = survey_end, duration, scanning.period
 
     def world(self, k: int, row: Row) -> None:
-        scanning, heights = self._scanning, self._reclaim.heights
-        if scanning.step(k, row.q, heights, self._plant.alive) and scanning.awaiting_first_cut:
-            scanning.note_first_cut(k * self._period, self._reclaim.dug > 0, heights)
+        heights, account = self._reclaim.heights, self._account
+        if self._scanning.step(k, row.q, heights, self._plant.alive) and account.awaiting_first_cut:
+            account.note_first_cut(k * self._period, self._reclaim.dug > 0, heights)
 
     def stepped(self, k: int, row: Row) -> None:
         if k + 1 == self._survey_end:  # the survey has ended: the benches are planned on the pile scanned
-            self._scanning.note_plan_start((k + 1) * self._period, self._reclaim.heights)
+            self._account.note_plan_start((k + 1) * self._period, self._reclaim.heights)
 
     def metrics(self, run: int, metrics: dict) -> None:
-        metrics["scan"] = self._scanning.metrics(run, self._reclaim.heights[run])
+        metrics["scan"] = self._account.metrics(run, self._reclaim.heights[run])
 
     def result(self, run: int, result: RunResult, recorder: Recorder) -> None:
-        result.scan = self._scanning.record(run, self._duration)
+        result.scan = self._account.record(run, self._duration)
 
 
 class PileClearanceStage(Stage):
@@ -225,32 +229,35 @@ class StackingStage(Stage):
 
 
 class ReclaimStage(Stage):
-    """The wheel's cut, the bucket and the belt, and the digging load on the joints (bwr_twin.stockpile.reclaim)."""
+    """The wheel's cut, the bucket and the belt, and the digging load on the joints
+    (bwr_twin.stockpile.reclaim); its account keeps what they did (bwr_twin.stockpile.reclaim_account)."""
 
-    def __init__(self, reclaim: Reclaim, plant: Plant):
-        self._reclaim, self._plant = reclaim, plant
+    def __init__(self, reclaim: Reclaim, account: ReclaimAccount, plant: Plant):
+        self._reclaim, self._account, self._plant = reclaim, account, plant
 
     def world(self, k: int, row: Row) -> None:
         reclaim = self._reclaim
         load = reclaim.step(k, row.q, self._plant.alive)
         if load is not None:
             row.disturbance += load
+        self._account.observe(k)
         rows = row.reclaim
         rows["rate"][...], rows["cut_depth"][...] = reclaim.rate, reclaim.depth
         rows["wheel_power"][...], rows["digging_force"][...] = reclaim.power, reclaim.force
 
     def finish(self, k: int) -> None:
         self._reclaim.finish(k - 1)
+        self._account.finish(k - 1)
 
     def metrics(self, run: int, metrics: dict) -> None:
-        metrics["reclaim"] = self._reclaim.metrics(run)
+        metrics["reclaim"] = self._account.metrics(run)
         if self._reclaim.stacked is not None:
-            metrics["blend"] = self._reclaim.blend_metrics(run)
+            metrics["blend"] = self._account.blend_metrics(run)
 
     def result(self, run: int, result: RunResult, recorder: Recorder) -> None:
-        reclaim = self._reclaim
-        result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **reclaim.pile(run),
-                                       grade_out=reclaim.grade_out(run))
+        account = self._account
+        result.reclaim = ReclaimRecord(**recorder.reclaim_share(run), **account.pile(run),
+                                       grade_out=account.grade_out(run))
 
 
 class RateInstrumentReading(Stage):

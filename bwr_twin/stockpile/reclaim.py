@@ -1,10 +1,11 @@
 """The reclaim of every run of a lockstep, one control period at a time: the cut (its Cutter,
-the one owner of the piles' heights), the bucket and belt (`Conveyor`), the digging load
-(`DiggingLoad`, when the scene has [digging]), and the pile as it was dug, for a replay.
+the one owner of the piles' heights), the bucket and belt (`Conveyor`) and the digging load
+(`DiggingLoad`, when the scene has [digging]). What it did over the run is kept by its account
+(bwr_twin.stockpile.reclaim_account), which reads it every period.
 
 On a stacked pile (bwr_twin.stockpile.stacked) each run's layers follow its heights: the cells
 the wheel lowered give up their layers from the top, and the grade of what was cut goes into the
-bucket with it; `blend_metrics` says what left the pile against what was stacked. With a
+bucket with it. With a
 `stockpile.angle_of_repose`, the faces the cut leaves slump after it (bwr_twin.pile.cutting),
 the layers carried along with them.
 """
@@ -24,24 +25,9 @@ from bwr_twin.pile.cutting import Cut, Cutter
 from bwr_twin.pile.surface import Surface, is_stacked_pile
 from bwr_twin.stockpile.conveyor import Conveyor
 from bwr_twin.stockpile.digging import DiggingLoad
-from bwr_twin.stockpile.grade import lots, rms_from, tonne_weighted
-from bwr_twin.stockpile.history import PileFrames
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
 from bwr_twin.stockpile.stacked import read_stacked
-from bwr_twin.units import KG_PER_T, SECONDS_PER_HOUR
-
-
-def _longest_outside(t: np.ndarray, grade: np.ndarray, band: tuple[float, float] | None, interval: float) -> float | None:
-    """s of the longest run of discharges outside the band, each standing for a bucket interval;
-    None without a band."""
-    if band is None:
-        return None
-    longest = current = 0.0
-    for value in grade:
-        current = current + interval if not band[0] <= value <= band[1] else 0.0
-        longest = max(longest, current)
-    return longest
 
 
 class Reclaim:
@@ -52,10 +38,8 @@ class Reclaim:
     `cut` and `cp` the period's cut and the CPs that made it.
     """
 
-    def __init__(self, scenes: Sequence[Scene], machine: Machine, surface: Surface, period: float,
-                 frame_every: int | None = None):
-        """`surface`: the scenes' pile; `frame_every`: keep the cells changed every that many
-        control periods, for a replay. Raises SceneError if the machine cannot dig the pile."""
+    def __init__(self, scenes: Sequence[Scene], machine: Machine, surface: Surface, period: float):
+        """`surface`: the scenes' pile. Raises SceneError if the machine cannot dig the pile."""
         self.surface = surface
         check_placement(surface, machine, scenes[0].path)
         runs = len(scenes)
@@ -80,11 +64,8 @@ class Reclaim:
         self.power = self.digging.power if self.digging is not None else zeros
         self.force = self.digging.force if self.digging is not None else np.zeros((runs, 3))
         self.depth = np.zeros(runs)
-        self.depth_max = np.zeros(runs)
         self.cut: Cut | None = None
         self.cp = np.zeros((runs, 3))
-        self._frame_every = frame_every
-        self._frames = PileFrames(self.cutter.heights, self._top_grades()) if frame_every else None
 
     @property
     def heights(self) -> np.ndarray:
@@ -109,9 +90,6 @@ class Reclaim:
                 if slump is not None:
                     self.layers[run].follow(slump, self.cutter.heights[run])
         self.depth[:] = cut.depth
-        np.maximum(self.depth_max, cut.depth, out=self.depth_max)
-        if self._frames is not None and k % self._frame_every == 0:
-            self._frames.keep(k * self.period, self.cutter.heights, self._top_grades())
         return self.digging.step(q, cp, cut) if self.digging is not None else None
 
     def _stack(self, scenes: Sequence[Scene]) -> None:
@@ -126,7 +104,7 @@ class Reclaim:
         self.layers = [copy.deepcopy(stacked.pile) for _ in scenes]
         self.conveyor.track_grade()
 
-    def _top_grades(self) -> list[np.ndarray] | None:
+    def top_grades(self) -> list[np.ndarray] | None:
         """On a stacked pile, each run's (ny, nx) top layer's grade, for the replay; else None."""
         return None if self.layers is None else [layers.top_grade() for layers in self.layers]
 
@@ -150,48 +128,6 @@ class Reclaim:
         scale = self.machine.belt_scale
         return scale.delay if scale is not None else 0.0
 
-    def blend_metrics(self, run: int) -> dict:
-        """metrics.json's `blend` object on a stacked pile (output contract): the grade of what the
-        buckets carried against what was stacked, the band, and the balances."""
-        stacked, conveyor = self.stacked, self.conveyor
-        t, volume, grade = self.discharges(run)
-        density = self.density[run] / KG_PER_T  # t/m^3
-        tonnes = volume * density
-        out = float(tonnes.sum())
-        mean, sd = tonne_weighted(tonnes, grade)
-        lot_tonnes, lot_grade = lots(tonnes, grade, max(round(self.wheel.discharges_per_minute), 1))  # a minute's
-        start = stacked.pile
-        held = self.layers[run]
-        left = (held.volume() + conveyor.carried[run] + conveyor.spilled[run] + conveyor.bucket[run])
-        left_grade = (held.grade_volume() + float(np.sum(volume * grade)) + conveyor.spilled_grade[run]
-                      + conveyor.bucket_grade[run])
-        return {
-            "grade_name": stacked.grade_name,
-            "layers": stacked.layers,
-            "tonnes_out_t": out,
-            "grade_in_mean": stacked.grade_in_mean,
-            "grade_in_sd": stacked.grade_in_sd,
-            "grade_out_mean": mean,
-            "grade_out_sd": sd,
-            "grade_out_sd_minute": tonne_weighted(lot_tonnes, lot_grade)[1] if len(lot_tonnes) >= 2 else float("nan"),
-            "grade_out_rms_minute": rms_from(lot_tonnes, lot_grade, stacked.grade_in_mean),
-            "sd_ratio": sd / stacked.grade_in_sd if stacked.grade_in_sd > 0 else float("nan"),
-            "pattern": stacked.pattern,
-            "equivalent_layers": stacked.equivalent_layers,
-            "sqrt_n_ratio": 1.0 / math.sqrt(stacked.equivalent_layers),  # NaN for cone shells
-            "variance_reduction": (stacked.grade_in_sd / sd) ** 2 if sd > 0 else float("inf"),
-            "band": list(stacked.band) if stacked.band is not None else None,
-            "longest_outside_band_s": _longest_outside(t, grade, stacked.band, self.conveyor.bucket_interval),
-            "belt_delay_s": self.belt_delay,
-            "balance_relative": (start.volume() - left) / start.volume(),
-            "grade_balance_relative": (start.grade_volume() - left_grade) / start.grade_volume(),
-        }
-
-    def discharges(self, run: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(n,) each discharge's time (s), volume carried (m^3) and grade, on a stacked pile."""
-        rows = np.array(self.conveyor.discharges[run], dtype=float).reshape(-1, 3)
-        return rows[:, 0], rows[:, 1], rows[:, 2]
-
     def carried_tonnes(self) -> np.ndarray:
         """(runs,) t the buckets have discharged onto the belt so far."""
         return self.conveyor.carried_tonnes()
@@ -199,33 +135,3 @@ class Reclaim:
     def finish(self, k: int) -> None:
         """After the last period k: the bucket in the cut discharges (bwr_twin.stockpile.conveyor)."""
         self.conveyor.finish(k)
-
-    def metrics(self, run: int) -> dict:
-        """metrics.json's `reclaim` object for `run` (output contract), but for a plan's measures."""
-        return {
-            **self.conveyor.metrics(run),
-            "pile_volume_lost_m3": self.surface.volume() - self.surface.volume(self.cutter.heights[run]),
-            "cut_depth_max_m": float(self.depth_max[run]),
-            "digging_force_max_N": float(self.digging.force_max[run]) if self.digging is not None else 0.0,
-            "wheel_capacity_tph": self.wheel.capacity * self.density[run] * SECONDS_PER_HOUR / KG_PER_T,
-            **({"slumped_m3": float(self.cutter.slumped[run]),  # moved, some of it more than once
-                "slumps_unconverged": int(self.cutter.unconverged[run])} if self.cutter.talus is not None else {}),
-        }
-
-    def grade_out(self, run: int) -> dict | None:
-        """On a stacked pile, the grade that left it: each discharge's time at the belt's end of
-        the delay (s), its tonnes and grade, and the grade's name; else None."""
-        if self.stacked is None:
-            return None
-        t, volume, grade = self.discharges(run)
-        return {"t": t + self.belt_delay, "tonnes": volume * self.density[run] / KG_PER_T, "grade": grade,
-                "name": self.stacked.grade_name}
-
-    def pile(self, run: int) -> dict:
-        """Run `run`'s pile: grid lines, heights before and after, and as it was dug (if kept; on a
-        stacked pile with its top layers' grade)."""
-        grade = (self.stacked.grade_name, self.stacked.band) if self.stacked is not None else ()
-        history = (self._frames.history(run, self.surface.x, self.surface.y, self.surface.z, *grade)
-                   if self._frames is not None else None)
-        return {"x": self.surface.x, "y": self.surface.y, "z_start": self.surface.z,
-                "z_end": self.cutter.heights[run].copy(), "history": history}
