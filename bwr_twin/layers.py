@@ -9,7 +9,7 @@ __init__.py.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),  # the exceptions every layer raises, and the exit status they give
     # small helpers: units, numbers, text files, signal names, the CLI's parts, shipped files, output marks
-    ("units", "values", "textfile", "signals", "progress", "arguments", "exposure", "shipped", "ownership",
+    ("units", "values", "textfile", "signals", "progress", "arguments", "exposure", "shipped", "ownership", "streams",
      "layers"),
     ("arrays",),  # arrays and rows from the files a user gives, checked before they are believed
     ("model",),  # the machine from its MJCF: kinematics, dynamics, collision shapes, instruments, scanners

@@ -12,8 +12,9 @@ import pytest
 
 from bwr_twin import SceneError
 from bwr_twin.config.faults import FAULT_KINDS, FaultSection, check_fault_scanners, check_faults
-from bwr_twin.sensing.faults import FAULT_STREAM, Faults, fault_periods
+from bwr_twin.sensing.faults import Faults, fault_periods
 from bwr_twin.sim.fault_report import fault_metrics
+from bwr_twin.streams import Stream
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -286,7 +287,7 @@ def test_noise_has_its_sigma_and_comes_from_each_runs_own_stream():
     np.testing.assert_array_equal(noise([8])[:, 0], together[:, 1])  # alone, the same numbers
     np.testing.assert_array_equal(noise([3, 8])[:, 1], together[:, 1])
     # The second fault's stream of the seed: one standard normal a period, from its first period.
-    stream = np.random.default_rng(np.random.SeedSequence(8, spawn_key=(FAULT_STREAM, 1)))
+    stream = np.random.default_rng(np.random.SeedSequence(8, spawn_key=(Stream.FAULT, 1)))
     np.testing.assert_array_equal(together[:, 1], sigma * DEG * stream.standard_normal(len(periods)))
 
 

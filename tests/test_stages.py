@@ -71,3 +71,13 @@ def test_metrics_sections_follow_the_output_contracts_order():
     sections = [key for key in result.metrics if key in SECTIONS]
     assert sections == [s for s in SECTIONS if s in result.metrics] and sections[-1] == "run"
     assert list(result.metrics)[-len(sections):] == sections  # after the loop's own
+
+
+def test_every_random_stream_has_its_own_number_and_draws_what_it_drew_before():
+    from bwr_twin.streams import Stream, stream
+
+    assert len(Stream.__members__) == len(Stream)  # no two sources share a number
+    before = np.random.SeedSequence(7).spawn(2)  # how the disturbances and gusts were seeded
+    for source, seeded in zip((Stream.DISTURBANCE, Stream.GUST), before):
+        np.testing.assert_array_equal(np.random.default_rng(stream(7, source)).random(4),
+                                      np.random.default_rng(seeded).random(4))

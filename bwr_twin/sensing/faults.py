@@ -10,8 +10,7 @@ inactive `Faults`, and the loop then calls none of it: such scenes run as before
 The encoder faults act on the readings in the scene's order, travel in m and slew and luff in
 rad (the scene's degrees converted here); late inputs then replace the readings with those of
 earlier periods, kept in a ring buffer no longer than the longest delay. Noise comes from each
-run's own stream: child 3 of its seed's SeedSequence (children 0-2 are the disturbance forces',
-the gusts' and the scanners'), one grandchild per fault, one standard normal per period the
+run's own stream (bwr_twin.streams: Stream.FAULT), one grandchild per fault, one standard normal per period the
 fault acts, so a run's numbers depend on its seed alone and not on the runs beside it.
 """
 
@@ -25,8 +24,8 @@ import numpy as np
 
 from bwr_twin.config.faults import FAULT_AXES, FaultSection
 from bwr_twin.sensing.noise import PeriodNormals
+from bwr_twin.streams import Stream
 
-FAULT_STREAM = 3  # the SeedSequence child of a run's seed the faults draw from
 _TOLERANCE = 1e-9  # of a period: k x period within it of a boundary is on it
 _NEVER = sys.maxsize  # the last period of a fault that lasts to the run's end
 _ENCODER_KINDS = ("encoder_stuck", "encoder_dropout", "encoder_drift", "encoder_noise")
@@ -55,7 +54,7 @@ class _EncoderFault:
         self.sigma = (fault.sigma or 0.0) * _TO_TWIN[self.axis]  # m or rad
         self.held: np.ndarray | None = None  # (runs,) the stuck position, from the first period it acts
         # a draw a period it acts, the first its 0th: the same whenever it starts
-        self.noise = PeriodNormals(seeds, (FAULT_STREAM, index)) if fault.kind == "encoder_noise" else None
+        self.noise = PeriodNormals(seeds, Stream.FAULT, index) if fault.kind == "encoder_noise" else None
 
     def apply(self, k: int, period: float, q: np.ndarray, qd: np.ndarray) -> None:
         j = self.axis

@@ -1,10 +1,8 @@
 """The random numbers of each run's senses, from the run's seed alone: the scanners' per ray, and
-a normal a control period for the faults and the instruments (`PeriodNormals`, children 3, 4
-and 5 of the run's SeedSequence).
+a normal a control period for the faults and the instruments (`PeriodNormals`).
 
-Each run draws from its own stream: the third child of its seed's SeedSequence (the first two
-are the disturbance forces' and the gusts', bwr_twin.sim.disturbances), and within it one child
-per scanner. So a run's scans do not depend on which runs share its lockstep, and adding a
+Each run draws from its own streams (bwr_twin.streams): the scanners' (Stream.SCANNER), and
+within it one child per scanner. So a run's scans do not depend on which runs share its lockstep, and adding a
 scanner leaves the disturbances unchanged. Every scan draws a standard normal (the range noise)
 and a uniform (the dropout) for every ray, hit or not, a block of scans at a time, so that the
 streams stay in step whatever the rays meet and memory stays bounded however long the run.
@@ -16,7 +14,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-SCANNER_STREAM = 2  # the SeedSequence child of a run's seed the scanners draw from
+from bwr_twin.streams import Stream, stream
+
 BLOCK = 64  # scans drawn at once: 2.6 s at 25 Hz
 PERIOD_BLOCK = 1000  # control periods of normals drawn at once
 
@@ -26,9 +25,7 @@ class ScanNoise:
     and uniforms in [0, 1). Scans must be asked for in increasing order."""
 
     def __init__(self, seeds: Sequence[int], scanner_index: int, rays: int):
-        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SCANNER_STREAM,
-                                                                                          scanner_index)))
-                            for seed in seeds]
+        self._generators = [np.random.default_rng(stream(seed, Stream.SCANNER, scanner_index)) for seed in seeds]
         self._rays = rays
         self._normal = np.empty((len(seeds), BLOCK, rays))
         self._uniform = np.empty((len(seeds), BLOCK, rays))
@@ -46,13 +43,12 @@ class ScanNoise:
 
 class PeriodNormals:
     """A standard normal a control period for every run, each run from its own stream, the
-    `spawn_key` child of its seed's SeedSequence (the faults' and the instruments'): `at(k)` is
+    `source` stream of its seed (`more`: a grandchild's keys; bwr_twin.streams): `at(k)` is
     period k's (runs,); periods must be asked for in increasing order. Every block is drawn, so a
     stream stays in step whichever periods are asked for."""
 
-    def __init__(self, seeds: Sequence[int], spawn_key: tuple[int, ...]):
-        self._generators = [np.random.default_rng(np.random.SeedSequence(seed, spawn_key=spawn_key))
-                            for seed in seeds]
+    def __init__(self, seeds: Sequence[int], source: Stream, *more: int):
+        self._generators = [np.random.default_rng(stream(seed, source, *more)) for seed in seeds]
         self._block = np.empty((len(seeds), PERIOD_BLOCK))
         self._start = None
 

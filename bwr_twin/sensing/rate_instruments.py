@@ -8,8 +8,7 @@ drive's shaft power as a three-phase motor draws it, I = P / (sqrt(3) V cos(phi)
 of its own; the power the drive reports is that current turned back into watts. A frozen scale
 (a fault) holds its last reading.
 
-Each run draws from its own streams, children 4 (the scale) and 5 (the current) of its seed's
-SeedSequence (0-2: disturbances, gusts, scanners; 3: faults), a normal a period for each, drawn a
+Each run draws from its own streams (bwr_twin.streams), a normal a period for each, drawn a
 block at a time: a run's readings depend on its seed alone.
 """
 
@@ -25,11 +24,11 @@ from bwr_twin.config.scene import Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.sensing.noise import PeriodNormals
+from bwr_twin.streams import Stream
 
 if TYPE_CHECKING:
     from bwr_twin.model.machine import Machine
 
-SCALE_STREAM, CURRENT_STREAM = 4, 5
 
 
 def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], period: float) -> RateInstruments | None:
@@ -76,10 +75,10 @@ class RateInstruments:
             self.delay_periods = round(scale.delay / period)
             self._belt = np.zeros((self.delay_periods + 1, runs))  # the true rates of the periods in transit
             self._smoothing = period / (scale.filter_time + period)
-            self._scale_noise = PeriodNormals(seeds, (SCALE_STREAM,))
+            self._scale_noise = PeriodNormals(seeds, Stream.BELT_SCALE)
             self.belt_scale[:] = 0.0
         if motor is not None:
-            self._current_noise = PeriodNormals(seeds, (CURRENT_STREAM,))
+            self._current_noise = PeriodNormals(seeds, Stream.WHEEL_CURRENT)
             self.wheel_current[:] = self.wheel_power[:] = 0.0  # before the first reading
 
     def read(self, k: int, rate: np.ndarray, power: np.ndarray, scale_frozen: bool = False) -> None:

@@ -1,7 +1,7 @@
 """Random forces and gusts, per run, from the run's seed alone.
 
 Each run draws from its own generators, so a run's sequence does not depend on which runs share
-its lockstep. Disturbance forces and gusts use independent streams (`SeedSequence.spawn`), so
+its lockstep. Disturbance forces and gusts use independent streams (bwr_twin.streams), so
 that turning gusts on leaves the disturbance sequence unchanged. Draws are made a block of
 control periods at a time, so memory stays bounded however long the path.
 """
@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from bwr_twin.sim.parameters import RunParameters
+from bwr_twin.streams import Stream, stream
 
 BLOCK = 1000  # control periods drawn at once
 
@@ -68,7 +69,7 @@ class Disturbances:
     """The disturbance forces on the joints (N, N m) and the wind gusts (m/s) of every run."""
 
     def __init__(self, parameters: RunParameters, period: float):
-        streams = [np.random.SeedSequence(seed).spawn(2) for seed in parameters.seed]
+        streams = [(stream(seed, Stream.DISTURBANCE), stream(seed, Stream.GUST)) for seed in parameters.seed]
         self.forces = HeldNoise([np.random.default_rng(force) for force, _ in streams],
                                 parameters.disturbance_amplitude, parameters.disturbance_hold, period)
         self.gusts = HeldNoise([np.random.default_rng(gust) for _, gust in streams],

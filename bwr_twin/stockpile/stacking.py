@@ -4,8 +4,8 @@ their layers while they are built.
 Every `deposit_period` the stream of that period (rate x period, the last one cut to the run's
 end) lands at the discharge point where the run's true joints put it as the period starts, at
 the grade the stream has then, as a new layer, and the pile relaxes to the material's angle of
-repose (bwr_twin.stockpile.deposition). Each run draws its grade from its own seed (child
-GRADE_STREAM of its SeedSequence) or reads the scene's recorded file. What came in is summed as
+repose (bwr_twin.stockpile.deposition). Each run draws its grade from its own seed (its own
+stream, bwr_twin.streams) or reads the scene's recorded file. What came in is summed as
 it lands, so the balances, tonnes and tonnes x grade in against what the pile holds, are checked
 at the end against the layers themselves.
 """
@@ -27,8 +27,8 @@ from bwr_twin.stockpile.grade import Ar1Grade, RecordedGrade, tonne_weighted
 from bwr_twin.stockpile.history import PileFrames, PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.material import Material
+from bwr_twin.streams import Stream, stream
 
-GRADE_STREAM = 6  # the SeedSequence child of a run's seed its grade stream draws from
 
 
 @dataclass
@@ -188,4 +188,4 @@ def grade_stream(section: GradeSection, period: float, seed: int) -> Ar1Grade | 
     if section.file is not None:
         return RecordedGrade(section.file, section.interpolation)
     return Ar1Grade(section.mean, section.sd, section.correlation_time, period,
-                    np.random.SeedSequence(seed, spawn_key=(GRADE_STREAM,)))
+                    stream(seed, Stream.GRADE))
