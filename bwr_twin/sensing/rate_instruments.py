@@ -30,7 +30,6 @@ if TYPE_CHECKING:
     from bwr_twin.model.machine import Machine
 
 
-
 def rate_instruments(scene: Scene, machine: Machine, seeds: Sequence[int], period: float) -> RateInstruments | None:
     """The belt scale and wheel current of a scene's runs: with a stockpile and a machine whose
     MJCF describes either; else None."""

@@ -8,7 +8,8 @@ the loop (bwr_twin.sim.lockstep) calls, stage after stage:
    interlock's decision);
 2. `world(k, row)`: before the physics step, with the true state at the period's start; the
    world's forces on the machine and what watches it (disturbances, scans, clearances, the
-   stacking stream, the cut and the belt, the instruments);
+   stacking stream, the cut and the belt, the instruments). The clearance monitors only read:
+   they see the pile as dug before this period's cut, so they run among the world's stages;
 3. `drives(k, applied)`: the (runs, 3) forces the drives apply where they do not apply the
    command (a quick stop, a tripped drive);
 4. `stepped(k, row)`: after the physics step, with the period's end state;
@@ -18,7 +19,8 @@ then, once the runs have ended, `finish(k)`, and for each run `metrics(run, metr
 RunResult. A stage implements only the hooks it needs; the loop calls only those.
 
 The world models themselves (bwr_twin.stockpile, bwr_twin.sensing, bwr_twin.collision) know
-nothing of the loop: the stages here bind them to it.
+nothing of the loop and keep no results: the stages here bind them to it, and their accounts
+(bwr_twin.stockpile.reclaim_account, bwr_twin.sensing.scan_account) keep what they did.
 """
 
 from __future__ import annotations
@@ -46,7 +48,6 @@ from bwr_twin.sim.record import ReclaimRecord, Recorder, RunResult
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.reclaim_account import ReclaimAccount
 from bwr_twin.stockpile.stacking import Stacking
-
 
 
 class Stage:

@@ -30,7 +30,6 @@ from bwr_twin.stockpile.material import Material
 from bwr_twin.streams import Stream, stream
 
 
-
 @dataclass
 class StackingRecord:
     """One run's stacking: every deposit, and the pile it built.
