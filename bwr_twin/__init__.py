@@ -3,11 +3,12 @@
 The package is built in layers (bwr_twin.layers), lowest first; each imports only from itself and
 the layers before it:
 
-    errors; units, values, textfile, signals, progress, arguments, exposure, shipped, ownership
-    -> model (MJCF machine, kinematics, its parts) -> control (control laws, rule base)
+    errors; units, values, textfile, signals, progress, arguments, exposure, shipped, ownership,
+    streams -> arrays (files checked) -> model (MJCF machine, kinematics, its parts)
+    -> control (control laws, rule base)
     -> fis (.fis files) -> config (scene and sweep files, plug-ins) -> pile (the pile's shape)
     -> planning (trajectory, bench and stacking plans) -> stockpile (material, digging, stacking)
-    -> sensing, collision -> sim (plant, encoders, lockstep loop, twin) -> results (run directories,
+    -> sensing, collision -> sim (plant, the lockstep loop and its stages, twin) -> results (run directories,
     plots) -> run -> batch, compare, export, gym, replay, serve -> tune
 """
 
