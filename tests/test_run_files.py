@@ -101,8 +101,9 @@ def _cut(row: int):
 # (id, edit of the CSV's lines, the one line it is refused with, after the file's name)
 DAMAGED_CSV = [
     ("missing-column", _header("luff_q_actual_rad", "luff_q_actual_deg"),
-     r": no column 'luff_q_actual_rad', which bwr_twin.run writes: renamed 'luff_q_actual_deg'\?"),
-    ("dropped-column", _header(",wind_speed_m/s", ""), r": no column 'wind_speed_m/s', which bwr_twin.run writes"),
+     r": no column 'luff_q_actual_rad', which bwr_twin.run writes \(docs/contracts.md\): renamed 'luff_q_actual_deg'\?"),
+    ("dropped-column", _header(",wind_speed_m/s", ""),
+     r": no column 'wind_speed_m/s', which bwr_twin.run writes \(docs/contracts.md\)$"),
     ("twice", _header("slew_q_actual_rad", "travel_q_actual_m"),
      r": the column 'travel_q_actual_m' appears twice in the header"),
     ("text", _cell(7, "slew_qd_actual_rad/s", "abc"), r": row 7, column 'slew_qd_actual_rad/s': 'abc' is not a number"),

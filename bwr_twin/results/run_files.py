@@ -161,7 +161,7 @@ def _require(required: Sequence[str], names: Sequence[str], what: str) -> None:
     if missing:
         like = difflib.get_close_matches(missing[0], [name for name in names if name not in required], n=1)
         renamed = f": renamed '{like[0]}'?" if like else ""
-        raise BwrError(f"{what}: no column '{missing[0]}', which bwr_twin.run writes{renamed}")
+        raise BwrError(f"{what}: no column '{missing[0]}', which bwr_twin.run writes (docs/contracts.md){renamed}")
 
 
 def _controller_columns(names: Sequence[str], known: set[str], what: str) -> dict[str, tuple[str, str, str]]:
