@@ -30,7 +30,7 @@ import numpy as np
 from bwr_twin.arrays import read_lines
 from bwr_twin.config.bounds import JOINT_ANGLE, JOINT_ANGLE_SOURCE, YARD_EXTENT, YARD_EXTENT_SOURCE
 from bwr_twin.errors import BwrError
-from bwr_twin.model.machine import paper_to_world
+from bwr_twin.model.machine import AXES, paper_to_world
 from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM, UNITS, Signal, column_name
 from bwr_twin.values import is_integer, is_number
 
@@ -43,7 +43,6 @@ MAX_TIMESERIES_BYTES = 4 << 30
 MAX_SCENE_LINES = 1_000_000
 MAX_SCENE_BYTES = 64 << 20
 
-AXES = ("travel", "slew", "luff")
 TIME = "time_s"
 WIND = "wind_speed_m/s"
 STACKED = "stacked_t"
