@@ -22,6 +22,7 @@ from bwr_twin.config.sweep import load_sweep
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
 from bwr_twin.ownership import MARKER_FILE
+from bwr_twin.results.run_files import read_scene
 
 # Ends at the paper's p_int2 (Sec. 4): the paper's machine reaches it, the test variant does not.
 FAR_VIA_POINTS = [*SHORT_VIA_POINTS, {"t": 40.0, "p": [-55.0, -11.0, 2.0]}]
@@ -339,8 +340,7 @@ def test_the_heavy_machine_runs_in_a_batch_by_swapping_the_mjcf(tmp_path):
     assert proc.returncode == 0, proc.stderr
     paper, heavy_run = summary_rows(out)
     assert heavy_run["run"].endswith("mjcf=bwr_heavy-seed=1")
-    scene = json.loads((out / heavy_run["run"] / "scene.json").read_text())
-    assert scene["machine"]["mjcf"] == str(heavy)
+    assert read_scene(out / heavy_run["run"] / "scene.json").mjcf == heavy
     # 1,200 t against 7 t: the drives work far harder for the same path.
     assert float(heavy_run["travel.drive_force_rms"]) > 50 * float(paper["travel.drive_force_rms"])
 

@@ -20,7 +20,9 @@ from pathlib import Path
 import pytest
 from conftest import PAPER_MJCF, ROOT, unrated_paper_mjcf, write_short_scene
 
+from bwr_twin.config.scene import load_scene
 from bwr_twin.ownership import mark
+from bwr_twin.results.run_files import COLUMNS
 
 
 def cli(module: str, *args, cwd: Path = ROOT, **popen) -> subprocess.CompletedProcess:
@@ -230,10 +232,10 @@ def _run_dir(tmp: Path, *, scene: str | None = None, rows: int | None = None) ->
     folder = tmp / "run"
     folder.mkdir()
     mark(folder, "run")
-    text = json.dumps({"path": str(tmp / "short.toml")}) if scene is None else scene
+    text = json.dumps(load_scene(tmp / "short.toml").to_dict()) if scene is None else scene
     (folder / "scene.json").write_text(text)
-    header = "time_s,travel_q_actual_m"
-    (folder / "timeseries.csv").write_text(header + "\n" + "".join(f"{i}.0,0.0\n" for i in range(rows or 0)))
+    row = ",0.0" * (len(COLUMNS) - 1)
+    (folder / "timeseries.csv").write_text(",".join(COLUMNS) + "\n" + "".join(f"{i}.0{row}\n" for i in range(rows or 0)))
     (folder / "metrics.json").write_text("{}\n")
     return folder
 

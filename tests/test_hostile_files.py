@@ -28,7 +28,7 @@ from bwr_twin.config.scene import StockpileSection
 from bwr_twin.errors import BwrError, SceneError
 from bwr_twin.pile.stacked_file import stacked_arrays
 from bwr_twin.pile.surface import MAX_SURVEY_POINTS, build_surface
-from bwr_twin.results.rundir import MAX_TIMESERIES_ROWS, read_timeseries
+from bwr_twin.results.run_files import COLUMNS, MAX_TIMESERIES_ROWS, read_timeseries
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.layers import LayeredPile
 
@@ -224,16 +224,17 @@ def test_a_survey_past_the_row_cap_is_refused_while_it_is_read(tmp_path):
 def test_a_time_series_past_the_row_cap_is_refused(tmp_path, monkeypatch):
     """The cap (MAX_TIMESERIES_ROWS, 5,000,000 rows) would take a 2 GB file to reach; the reader
     is the same with a smaller cap."""
-    import bwr_twin.results.rundir as rundir
+    import bwr_twin.results.run_files as run_files
 
     assert MAX_TIMESERIES_ROWS == 5_000_000
-    monkeypatch.setattr(rundir, "MAX_TIMESERIES_ROWS", 10)
-    (tmp_path / "timeseries.csv").write_text("time_s,a\n" + "".join(f"{i},0\n" for i in range(11)))
+    monkeypatch.setattr(run_files, "MAX_TIMESERIES_ROWS", 10)
+    header, row = ",".join(COLUMNS) + "\n", ",0" * (len(COLUMNS) - 1) + "\n"
+    (tmp_path / "timeseries.csv").write_text(header + "".join(f"{i}{row}" for i in range(11)))
     with pytest.raises(BwrError, match=r"timeseries.csv: more than 11 lines, the most it may hold: a time series of "
                                        r"at most 10 rows and a header"):
         read_timeseries(tmp_path / "timeseries.csv")
-    (tmp_path / "timeseries.csv").write_text("time_s,a\n" + "".join(f"{i},0\n" for i in range(10)))
-    assert len(read_timeseries(tmp_path / "timeseries.csv")["a"]) == 10
+    (tmp_path / "timeseries.csv").write_text(header + "".join(f"{i}{row}" for i in range(10)))
+    assert len(read_timeseries(tmp_path / "timeseries.csv").time) == 10
 
 
 def test_a_text_file_past_its_bytes_is_refused_without_reading_it_whole(tmp_path):

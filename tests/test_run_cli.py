@@ -11,7 +11,7 @@ import pytest
 from conftest import ROOT, VARIANT_MJCF, write_short_scene
 
 from bwr_twin.model.machine import AXES
-from bwr_twin.results.rundir import read_timeseries
+from bwr_twin.results.run_files import read_timeseries
 
 CONTRACT_KEYS = {"position_error_max", "position_error_max_time", "velocity_error_max", "acceleration_error_max", "position_error_rms"}
 def run_cli(*args, cwd=ROOT):
@@ -27,7 +27,7 @@ def test_run_writes_contract_results(tmp_path):
     for axis in AXES:
         assert CONTRACT_KEYS <= set(metrics[axis])
         assert 0 <= metrics[axis]["position_error_max_time"] <= 20
-    series = read_timeseries(out / "timeseries.csv")
+    series = read_timeseries(out / "timeseries.csv").columns
     assert series["time_s"][0] == 0 and series["time_s"][-1] == pytest.approx(20)
     assert {"travel_q_desired_m", "slew_q_actual_rad", "luff_drive_force_Nm", "cp_actual_x_m"} <= set(series)
     # The recorded errors agree with the metrics (record period 0.1 s, metrics at 0.01 s).

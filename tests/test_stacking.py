@@ -18,7 +18,8 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.pile.relaxation import Talus
 from bwr_twin.planning.stacking import plan_stacking
 from bwr_twin.replay.charts import charts
-from bwr_twin.results.rundir import read_timeseries, write_run
+from bwr_twin.results.run_files import read_timeseries
+from bwr_twin.results.rundir import write_run
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate
 
@@ -97,9 +98,9 @@ def test_the_run_directory_keeps_the_layers_the_deposits_and_the_grade_in_time(s
         np.testing.assert_array_equal(pile["deposit_grade"], stacked.stacking.grade)
         np.testing.assert_array_equal(pile["deposit_drop"], stacked.stacking.drop)
         np.testing.assert_array_equal(pile["z_end"], stacked.stacking.z)
-    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
-    assert columns["stacked_t"][-1] == pytest.approx(2000.0, rel=1e-6)
-    assert np.isfinite(columns["stacking_grade_in_Fe %"]).all()
+    series = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    assert series.stacked[-1] == pytest.approx(2000.0, rel=1e-6)
+    assert (series.grade.name, series.grade.kind) == ("Fe %", "stacked") and np.isfinite(series.grade.values).all()
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert metrics["stacking"]["layers"] == 4
     assert (tmp_path / "run" / "stacking.png").stat().st_size > 10_000
@@ -370,11 +371,12 @@ def test_the_run_directory_keeps_the_grade_out_after_the_belt_delay(reclaimed, t
     result, _ = reclaimed
     write_run(result, tmp_path / "run")
     assert (tmp_path / "run" / "blend.png").stat().st_size > 10_000
-    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
-    grade = columns["grade_out_Fe %"]
+    series = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    assert (series.grade.name, series.grade.kind) == ("Fe %", "reclaimed")
+    grade = series.grade.values
     first = result.reclaim.grade_out["t"][0]
-    assert np.isnan(grade[columns["time_s"] < first - 1e-9]).all()
-    assert grade[np.searchsorted(columns["time_s"], first)] == pytest.approx(result.reclaim.grade_out["grade"][0])
+    assert np.isnan(grade[series.time < first - 1e-9]).all()
+    assert grade[np.searchsorted(series.time, first)] == pytest.approx(result.reclaim.grade_out["grade"][0])
 
 
 @pytest.mark.parametrize("old, new, message", [

@@ -19,6 +19,7 @@ from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_h
 from bwr_twin.pile.cutting import Cutter
 from bwr_twin.pile.relaxation import Talus
 from bwr_twin.pile.surface import Surface, build_surface
+from bwr_twin.results.run_files import read_timeseries
 from bwr_twin.results.summary import summary_table
 from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 from bwr_twin.stockpile.digging import jacobian_transpose
@@ -309,8 +310,9 @@ def test_a_run_writes_its_pile_rate_and_figures(tmp_path):
     with np.load(out / "pile.npz") as pile:
         assert pile["z_start"].shape == pile["z_end"].shape == (len(pile["y"]), len(pile["x"]))
         assert (pile["z_start"] >= pile["z_end"]).all() and (pile["z_start"] > pile["z_end"]).any()
-    header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
-    assert {"reclaim_rate_t/h", "cut_depth_m", "wheel_power_W", "digging_force_x_N"} <= set(header)
+    series = read_timeseries(out / "timeseries.csv", envelope=Machine(HEAVY_MJCF).envelope)
+    assert {"rate", "cut_depth", "wheel_power", "digging_force"} <= set(series.reclaim)
+    assert {"reclaim_rate_t/h", "cut_depth_m", "wheel_power_W", "digging_force_x_N"} <= set(series.columns)
     assert (out / "pile.png").stat().st_size > 10_000 and (out / "reclaim.png").stat().st_size > 10_000
 
 

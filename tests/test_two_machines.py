@@ -101,11 +101,12 @@ def test_the_replay_draws_the_neighbour_where_the_run_put_it(meeting, tmp_path):
     poses the neighbour's bodies with its own kinematics, beside the machine's."""
     from bwr_twin.replay import Plan, Recording, ReplayServer
     from bwr_twin.replay.geometry import BodyPoser
-    from bwr_twin.results.rundir import read_timeseries, write_run
+    from bwr_twin.results.run_files import read_timeseries
+    from bwr_twin.results.rundir import write_run
 
     write_run(meeting, tmp_path / "run")
-    columns = read_timeseries(tmp_path / "run" / "timeseries.csv")
-    np.testing.assert_allclose(columns["travel_neighbour_q_actual_m"], meeting.neighbour["q"][:, 0], atol=1e-6)
+    series = read_timeseries(tmp_path / "run" / "timeseries.csv")
+    np.testing.assert_allclose(series.neighbour["q"][:, 0], meeting.neighbour["q"][:, 0], atol=1e-6)
     recording = Recording.from_run_dir(tmp_path / "run")
     np.testing.assert_allclose(recording.neighbour_q, Recording.from_result(meeting).neighbour_q, atol=1e-6)
     planned = Plan.from_scene(load_scene(SCENE, SHORT))

@@ -40,18 +40,18 @@ TIMEOUT = 60.0  # s, per stage
 def machine_triangles(source: Path) -> int:
     """Triangles of the machines' visual geoms, from the scene's (or runs') MJCF: all of the first
     run's, and the moving ones of each other run of its world."""
-    import json
-
     from bwr_twin.config.scene import load_scene
     from bwr_twin.model.machine import Machine
     from bwr_twin.replay.geometry import BodyPoser, visual_geoms
     from bwr_twin.replay.runs import run_folders
+    from bwr_twin.results.run_files import read_scene
+    from bwr_twin.results.rundir import SCENE_FILE
 
     if not source.is_dir():
         return sum(len(g.faces) for g in visual_geoms(Machine(load_scene(source).machine.mjcf)))
     total = 0
     for k, folder in enumerate(run_folders(source)):
-        machine = Machine(json.loads((folder / "scene.json").read_text())["machine"]["mjcf"])
+        machine = Machine(read_scene(folder / SCENE_FILE).mjcf)
         poser = BodyPoser(machine)
         moving = {name for name, moves in zip(poser.names, poser.moving) if moves}
         total += sum(len(g.faces) for g in visual_geoms(machine) if k == 0 or g.body in moving)

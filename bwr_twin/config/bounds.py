@@ -66,6 +66,19 @@ FRICTION_COEFFICIENT = 1.0
 PILE_HEIGHT = (-5.0, 100.0)
 PILE_HEIGHT_SOURCE = "metres above the yard floor: open stockpiles stand at most some 30 m"
 
+# m, a rail position or a world coordinate of a run's time series, read where the machine is not
+# known (with it, its own operating envelope bounds its joints: bwr_twin.results.run_files). The
+# shipped heavy machine's rail spans 400 m (mjcf/bwr_heavy.xml, an envelope of +-200 m), and the beds
+# of the largest bulk terminals run a few kilometres; 10 km from the yard's origin lies in no yard.
+YARD_EXTENT = 10_000.0
+YARD_EXTENT_SOURCE = "metres from the yard's origin: a yard's rail runs at most a few kilometres"
+
+# rad, a slew or luff angle of a run's time series, read where the machine is not known. The shipped
+# machines slew within +-115 deg and luff within +-16 deg (mjcf/bwr_heavy.xml); a reclaimer's boom
+# conveyor and cables hold its slew within a turn either way, its luff far within.
+JOINT_ANGLE = 6.283185307179586
+JOINT_ANGLE_SOURCE = "radians: no slew or luff of a reclaimer turns more than a turn either way"
+
 _Facts = tuple[str, float, float, float, float]  # machine file name, weight N, reach m, boom m, wheel drive W
 
 

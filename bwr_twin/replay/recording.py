@@ -10,10 +10,8 @@ run directory keyed by everything that decides its outcome.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import hashlib
 import json
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,10 +21,11 @@ import numpy as np
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError
-from bwr_twin.model.machine import AXES, Machine, paper_to_world
+from bwr_twin.model.machine import Machine
 from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.planning.follower import Stage
 from bwr_twin.replay.scans import Scans
+from bwr_twin.results.run_files import GradeSeries, RunScene, TimeSeries, read_scene, read_timeseries, timeseries_of
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.layers import top_grade
@@ -167,26 +166,6 @@ class Instant:
 
 
 @dataclass(frozen=True)
-class GradeSeries:
-    """The grade a run charts: what was stacked as it arrived ("stacked"), or what left a stacked
-    pile as the belt scale passed it ("reclaimed"); `values` (n,) at the record times, NaN before
-    the first discharge passed."""
-
-    name: str  # what the grade is: "Fe %"
-    kind: str  # "stacked" or "reclaimed"
-    values: np.ndarray
-
-    @classmethod
-    def of(cls, columns: dict[str, np.ndarray]) -> GradeSeries | None:
-        """From a run's time-series columns (docs/contracts.md); None for a run without grade."""
-        for prefix, kind in (("stacking_grade_in_", "stacked"), ("grade_out_", "reclaimed")):
-            for column, values in columns.items():
-                if column.startswith(prefix):
-                    return cls(column.removeprefix(prefix), kind, np.asarray(values, dtype=float))
-        return None
-
-
-@dataclass(frozen=True)
 class Recording:
     """A finished run: its plan plus what the machine actually did."""
 
@@ -240,39 +219,34 @@ class Recording:
         missing = [f for f in (TIMESERIES_FILE, SCENE_FILE) if not (run_dir / f).is_file()]
         if missing:
             raise BwrError(f"{run_dir}: not a run directory of bwr_twin.run (no {', '.join(missing)})")
+        scene = read_scene(run_dir / SCENE_FILE)
+        machine = Machine(scene.mjcf)
+        neighbour = Machine(scene.neighbour_mjcf) if scene.neighbour_mjcf is not None else None
+        series = read_timeseries(run_dir / TIMESERIES_FILE, envelope=machine.envelope,
+                                 neighbour_envelope=neighbour.envelope if neighbour is not None else None)
+        if len(series.time) < 2:
+            raise BwrError(f"{run_dir / TIMESERIES_FILE}: {len(series.time)} rows of samples; a replay needs at least 2")
+        pile_file = run_dir / PILE_FILE
+        pile = PileHistory.read(pile_file, float(series.time[-1])) if pile_file.is_file() else None
+        scans = Scans.read(run_dir, *((pile.x, pile.y) if pile is not None else ()))
+        run = {}
         try:
-            scene = json.loads((run_dir / SCENE_FILE).read_text())
-            if not isinstance(scene, dict):
-                raise TypeError(SCENE_FILE)  # said below, before the time series is read
-            columns = read_recorded(run_dir / TIMESERIES_FILE)
-            machine = Machine(scene["machine"]["mjcf"])
-            pile_file = run_dir / PILE_FILE
-            pile = PileHistory.read(pile_file, float(columns["time_s"][-1])) if pile_file.is_file() else None
-            scans = Scans.read(run_dir, *((pile.x, pile.y) if pile is not None else ()))
-            run = {}
-            if scene["trajectory"] is None:  # a bench reclaim's waypoints are the run's own
+            if scene.via_times is None:  # a bench reclaim's waypoints are the run's own
                 run = json.loads((run_dir / METRICS_FILE).read_text())["run"]
-            return cls._from_columns(columns, scene, machine, title=Path(scene["path"]).name, pile=pile, run=run,
-                                     scans=scans)
+            return cls._from_series(series, scene, machine, pile=pile, run=run, scans=scans, neighbour=neighbour)
         except (ValueError, OSError) as exc:
             raise BwrError(f"{run_dir}: unreadable run directory: {exc}") from None
         except KeyError as exc:
-            raise BwrError(
-                f"{run_dir}: incomplete run directory: no {exc} in {SCENE_FILE} or {TIMESERIES_FILE}"
-            ) from None
-        except (TypeError, AttributeError, IndexError):  # JSON of another shape than a scene's
-            raise BwrError(
-                f"{run_dir / SCENE_FILE}: not a scene as bwr_twin.run writes it (an object with machine, "
-                "path and its via points)"
-            ) from None
+            raise BwrError(f"{run_dir / METRICS_FILE}: incomplete: no {exc} in its run block") from None
+        except (TypeError, AttributeError, IndexError):  # JSON of another shape than a run block's
+            raise BwrError(f"{run_dir / METRICS_FILE}: its run block is not the one bwr_twin.run writes (the "
+                           "plan's waypoint_times, waypoints and waypoint_stages)") from None
 
     @classmethod
     def from_result(cls, result: RunResult) -> Recording:
         """A `RunResult` as its run directory would hold it."""
         from bwr_twin.results.rundir import timeseries_columns
 
-        names, values = timeseries_columns(result)
-        columns = dict(zip(names, values.T))
         reclaim, stacking, pile = result.reclaim, result.stacking, None
         if reclaim is not None:
             pile = reclaim.history or PileHistory.start_and_end(
@@ -281,118 +255,51 @@ class Recording:
             pile = stacking.history or PileHistory.start_and_end(
                 stacking.x, stacking.y, np.zeros_like(stacking.z), stacking.z, float(result.time[-1]),
                 top_grade(stacking.layer_grade, stacking.count), stacking.grade_name, stacking.band)
-        return cls._from_columns(columns, result.scene.to_dict(), result.machine, title=result.scene.path.name,
-                                 pile=pile, run=result.metrics["run"], scans=Scans.of(getattr(result, "scan", None)))
+        what = str(result.scene.path)
+        neighbour = Machine(result.scene.neighbour.mjcf) if result.scene.neighbour is not None else None
+        return cls._from_series(timeseries_of(*timeseries_columns(result), what),
+                                RunScene.of(result.scene.to_dict(), what), result.machine, pile=pile,
+                                run=result.metrics["run"], scans=Scans.of(getattr(result, "scan", None)),
+                                neighbour=neighbour)
 
     @classmethod
-    def _from_columns(
-        cls, columns: dict[str, np.ndarray], scene: dict, machine: Machine, *, title: str,
-        pile: PileHistory | None = None, run: dict, scans: Scans | None = None,
+    def _from_series(
+        cls, series: TimeSeries, scene: RunScene, machine: Machine, *, pile: PileHistory | None = None,
+        run: dict, scans: Scans | None = None, neighbour: Machine | None = None,
     ) -> Recording:
         """`run`: metrics.json's run block (a bench reclaim's waypoints); `scans`: the run's, posed
-        here on its machine at its joint values."""
-        from bwr_twin.results.rundir import column_name
-
-        def joints(stem: str) -> np.ndarray:
-            return np.column_stack([columns[column_name(stem, j)] for j in range(len(AXES))])
-
-        def cp(kind: str) -> np.ndarray:
-            return np.column_stack([columns[f"cp_{kind}_{c}_m"] for c in "xyz"])
-
-        path = scene["trajectory"]
+        here on its machine at its joint values; `neighbour`: the second machine on the rail."""
         stages: tuple[Stage, ...] = ()
-        if path is None:  # a bench reclaim: where the run began each segment of its plan, and which
+        if scene.via_times is None:  # a bench reclaim: where the run began each segment of its plan, and which
             via_times = np.array(run["waypoint_times"], dtype=float)
             via_points = np.array(run["waypoints"], dtype=float).reshape(-1, 3)
             stages = tuple(Stage(**stage) for stage in run["waypoint_stages"])
         else:
-            via_times = np.array([v["t"] for v in path["via_points"]], dtype=float)
-            via_points = np.array([v["p"] for v in path["via_points"]], dtype=float)
-            if path["frame"] == "paper":
-                via_points = paper_to_world(via_points)
+            via_times, via_points = scene.via_times, scene.via_points
+        signals = series.signals
         plan = Plan(
             machine=machine,
-            title=title,
-            time=columns["time_s"],
-            q_desired=joints("q_desired"),
-            qd_desired=joints("qd_desired"),
-            cp_desired=cp("desired"),
+            title=scene.title,
+            time=series.time,
+            q_desired=signals["q_desired"],
+            qd_desired=signals["qd_desired"],
+            cp_desired=series.cp_desired,
             via_times=via_times,
             via_points=via_points,
             pile=Surface(pile.x, pile.y, pile.z_start) if pile is not None else None,
             via_stages=stages,
-            activity="stacking" if scene.get("stacking") is not None else "reclaim",
+            activity=scene.activity,
         )
-        q_actual = joints("q_actual")
-        neighbour = scene.get("neighbour")
+        q_actual = signals["q"]
         if neighbour is not None:
-            plan = dataclasses.replace(plan, neighbour=Machine(neighbour["mjcf"]),
-                                       neighbour_q_desired=joints("neighbour_q_desired"))
+            plan = dataclasses.replace(plan, neighbour=neighbour, neighbour_q_desired=series.neighbour["q_desired"])
         if scans is not None:
             scans.attach(machine, plan.time, q_actual)
-        return cls(plan, q_actual, joints("qd_actual"), cp("actual"),
-                   reclaim_rate=columns.get("reclaim_rate_t/h"), pile=pile,
-                   controller=str((scene.get("controller") or {}).get("type", "")), scans=scans,
-                   neighbour_q=joints("neighbour_q_actual") if neighbour is not None else None,
-                   grade=GradeSeries.of(columns))
-
-
-def read_recorded(path: Path) -> dict[str, np.ndarray]:
-    """A run directory's timeseries.csv as {column: values}, checked for what the replay draws:
-    its columns there, at least 2 rows, every row complete, those columns' values finite and time
-    increasing. A problem is one BwrError naming the file, the row (1 = the first after the
-    header) and the column."""
-    from bwr_twin.results.rundir import column_name, timeseries_lines
-
-    lines = timeseries_lines(path)
-    header = lines[0].split(",") if lines else []
-    rows = [line for line in lines[1:] if line.strip()]
-    if len(rows) < 2:
-        raise BwrError(f"{path}: {len(rows)} rows of samples; a replay needs at least 2")
-    needed = ["time_s", *(column_name(stem, j) for stem in ("q_desired", "qd_desired", "q_actual", "qd_actual")
-                          for j in range(len(AXES))),
-              *(f"cp_{kind}_{c}_m" for kind in ("desired", "actual") for c in "xyz")]
-    needed += ["reclaim_rate_t/h"] if "reclaim_rate_t/h" in header else []  # a reclaim's
-    missing = [name for name in needed if name not in header]
-    if missing:
-        like = difflib.get_close_matches(missing[0], [name for name in header if name not in needed], n=1)
-        renamed = f": renamed '{like[0]}'?" if like else ""
-        raise BwrError(f"{path}: no column '{missing[0]}', which bwr_twin.run writes and the replay draws{renamed}")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            values = np.loadtxt(rows, delimiter=",", ndmin=2)
-    except ValueError:
-        values = None
-    if values is None or values.shape[1] != len(header):
-        _bad_row(path, header, rows)  # numpy's message names no column: find the row and say it
-    used = [header.index(name) for name in needed]
-    bad = np.argwhere(~np.isfinite(values[:, used]))
-    if len(bad):
-        row, k = bad[0]
-        raise BwrError(f"{path}: row {row + 1}, column '{needed[k]}': {values[row, used[k]]}, not a finite number")
-    steps = np.diff(values[:, 0])
-    if not (steps > 0).all():
-        row = int(np.argmax(~(steps > 0))) + 2
-        raise BwrError(f"{path}: row {row}, column 'time_s': {values[row - 1, 0]:g} s does not come after the row "
-                       f"before's {values[row - 2, 0]:g} s")
-    return {name: values[:, i] for i, name in enumerate(header)}
-
-
-def _bad_row(path: Path, header: list[str], rows: list[str]) -> None:
-    """Raise the BwrError naming the first row that is short, long or holds something not a number."""
-    for number, line in enumerate(rows, start=1):
-        fields = line.split(",")
-        if len(fields) != len(header):
-            raise BwrError(f"{path}: row {number} has {len(fields)} values for the header's {len(header)} columns "
-                           f"(a truncated or damaged file): column '{header[min(len(fields), len(header)) - 1]}' "
-                           "is the last it fills")
-        for name, field in zip(header, fields):
-            try:
-                float(field)
-            except ValueError:
-                raise BwrError(f"{path}: row {number}, column '{name}': {field.strip()!r} is not a number") from None
-    raise BwrError(f"{path}: unreadable as numbers")
+        return cls(plan, q_actual, signals["qd"], series.cp_actual,
+                   reclaim_rate=series.reclaim["rate"] if series.reclaim is not None else None, pile=pile,
+                   controller=scene.controller, scans=scans,
+                   neighbour_q=series.neighbour["q"] if neighbour is not None else None,
+                   grade=series.grade)
 
 
 def path_difference(ghost: Plan, plan: Plan) -> str:

@@ -1,5 +1,5 @@
 """What a run leaves behind: metrics, a self-describing time series and the run's settings,
-written into a directory that appears only when complete.
+written into a directory that appears only when complete (read back by bwr_twin.results.run_files).
 
 Layout of a run directory (the output contract of docs/contracts.md, plus more):
     metrics.json      per-axis error maxima (signed), their times, RMS, drive saturation
@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.arrays import read_lines
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 from bwr_twin.ownership import check_output, mark
@@ -38,19 +37,6 @@ METRICS_FILE = "metrics.json"
 PILE_FILE = "pile.npz"
 TIMESERIES_FILE = "timeseries.csv"
 SCENE_FILE = "scene.json"
-# The most rows a timeseries.csv is read with (a header besides): 12 h, the longest run the budget
-# starts without --force (bwr_twin.sim.budget), recorded every 0.01 s are 4,320,000 rows. Its rows
-# take some 500 bytes each (43 columns of a stacking), 2 GB; 4 GiB is the most a file is read with.
-MAX_TIMESERIES_ROWS = 5_000_000
-MAX_TIMESERIES_BYTES = 4 << 30
-
-_LOOP_COLUMNS = {signal.column: signal for signal in LOOP + NEIGHBOUR}
-
-
-def column_name(stem: str, axis: int) -> str:
-    """The timeseries.csv column of one axis of one of the loop's signals: column_name("qd_actual", 1)
-    is 'slew_qd_actual_rad/s'."""
-    return signal_column(_LOOP_COLUMNS[stem], axis)
 
 
 def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
@@ -95,22 +81,6 @@ def timeseries_columns(result: RunResult) -> tuple[list[str], np.ndarray]:
                 names.append(signal_column(signal, j))
                 columns.append(result.neighbour[signal.name][:, j])
     return names, np.column_stack(columns)
-
-
-def read_timeseries(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a timeseries.csv back into {column name: array}."""
-    lines = timeseries_lines(path)
-    names = lines[0].strip().split(",") if lines else [""]
-    values = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
-    if values.size == 0:  # a header and no rows
-        values = np.empty((0, len(names)))
-    return {name: values[:, i] for i, name in enumerate(names)}
-
-
-def timeseries_lines(path: str | Path) -> list[str]:
-    """The lines of a timeseries.csv, refused (BwrError) past MAX_TIMESERIES_ROWS or _BYTES."""
-    return read_lines(path, what=str(path), max_rows=MAX_TIMESERIES_ROWS + 1, max_bytes=MAX_TIMESERIES_BYTES,
-                      why=f": a time series of at most {MAX_TIMESERIES_ROWS:,} rows and a header")
 
 
 def _umask() -> int:
