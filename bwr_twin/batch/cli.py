@@ -55,6 +55,7 @@ from bwr_twin.sim.lockstep import lockstep_key
 STAGING_PATTERNS = (".*.partial-*", ".*.old-*")  # temporary names; staged_directory's too
 SUMMARY_EVERY_S = 2.0  # s between rewrites of summary.csv while runs complete
 MAX_CHUNK = 128  # runs a lockstep by default: 700 s records of 128 runs take about 300 MB
+REPAIRS = (METRICS_FILE,)  # a run directory's file whose damage a batch repairs by running it again
 
 
 class BatchLock:
@@ -172,6 +173,8 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
             or (retry_failed and records[run.run_id].status == "failed")]
     # Run directories to replace: failed ones retried, and damaged ones (pending with a reason).
     replace = {run.run_id for run in todo if records[run.run_id].error}
+    for run_id in sorted(replace):  # each holds only what the twin wrote, before anything runs
+        check_output(out_dir / run_id, "run", overwrite=True, repairs=REPAIRS)
     damaged = [run.run_id for run in todo if run.run_id in replace and records[run.run_id].status == "pending"]
     if damaged:
         print(f"note: {len(damaged)} run directories in {out_dir} have no readable {METRICS_FILE} "
@@ -233,7 +236,7 @@ def _publish(out_dir: Path, outcome: Outcome, *, replace: bool) -> None:
             publish_directory(Path(outcome.folder), target)
         return
     if outcome.files:
-        with staged_directory(out_dir / outcome.run_id, overwrite=replace) as staging:
+        with staged_directory(out_dir / outcome.run_id, overwrite=replace, repairs=REPAIRS) as staging:
             for name, content in outcome.files.items():
                 (staging / name).write_bytes(content)
 
