@@ -291,6 +291,14 @@ def check_manifest(folder: Path, *, option: str = "--out", nested: bool = True, 
                        f"only what it wrote: move it away, or choose another {option}")
 
 
+def check_resumed(folder: Path, option: str = "--out") -> None:
+    """Refuse to continue a batch or tuning in `folder` if it holds anything its manifest does not
+    record as it is (check_manifest), but for the marked folders of its runs, each checked when it
+    is replaced. A folder marked before the twin kept manifests is resumed as before."""
+    if FILES in (marker(folder) or {}):
+        check_manifest(folder, option=option, nested=False)
+
+
 def _unchanged(path: Path, recorded: object) -> bool:
     return (isinstance(recorded, list) and len(recorded) == 2 and path.stat().st_size == recorded[0]
             and file_record(path) == recorded)
@@ -410,8 +418,8 @@ def _check_folder(path: Path, kind: str, overwrite: bool, option: str, repairs: 
                        f"choose another {option}")
     if kind not in RESUMABLE and not overwrite:
         raise BwrError(f"{path}: already exists; choose another {option} or pass --overwrite")
-    if kind not in RESUMABLE or FILES in found:  # a folder marked before manifests is resumed as before
-        check_manifest(path, option=option, nested=kind not in RESUMABLE, repairs=repairs)
+    if kind not in RESUMABLE:  # one RESUMABLE is checked by check_resumed once it is known to be the same work's
+        check_manifest(path, option=option, repairs=repairs)
 
 
 def _check_writable(folder: Path, option: str) -> None:

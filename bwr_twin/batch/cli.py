@@ -46,7 +46,7 @@ from bwr_twin.batch.engines import ERROR_FILE, DaskCluster, LocalPool, Outcome
 from bwr_twin.batch.report import PLOTS_DIR, SUMMARY_FILE, RunRecord, spread_table, write_plots, write_summary
 from bwr_twin.config.sweep import MAX_RUNS, PlannedRun, Sweep, load_sweep
 from bwr_twin.errors import BwrError
-from bwr_twin.ownership import BATCH_LOCK_FILE, check_output, mark, marker
+from bwr_twin.ownership import BATCH_LOCK_FILE, check_output, check_resumed, mark, marker
 from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, publish_directory, staged_directory
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
@@ -168,6 +168,7 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
     started = time.perf_counter()
     records = {run.run_id: existing_record(out_dir, run) or RunRecord("pending") for run in sweep.runs}
     check_sweep_owns(out_dir, sweep)  # after the records: a run done differently is named first
+    check_resumed(out_dir)
     remove_debris(out_dir)
     todo = [run for run in sweep.runs if records[run.run_id].status == "pending"
             or (retry_failed and records[run.run_id].status == "failed")]
