@@ -57,8 +57,9 @@ def ok(proc: subprocess.CompletedProcess) -> None:
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory) -> Path:
-    """A folder of every writer's output, each written once by its command."""
-    folder = tmp_path_factory.mktemp("written")
+    """A folder of every writer's output, each written once by its command, and kept as it was
+    beside it (a batch's runs name the scene's path: the cases change it where it was written)."""
+    folder = tmp_path_factory.mktemp("written") / "work"
     write_short_scene(folder)
     (folder / "sweep.toml").write_text(SWEEP)
     ok(cli("run", "short.toml", "--out", "run", "--no-plots", cwd=folder))
@@ -69,6 +70,7 @@ def written(tmp_path_factory) -> Path:
     _tuning_folder(folder)
     for command in FILES.values():
         ok(cli(*[part for part in command if part != "--overwrite"], cwd=folder))
+    shutil.copytree(folder, folder.parent / "pristine", symlinks=True)
     return folder
 
 
@@ -85,9 +87,10 @@ def _tuning_folder(folder: Path) -> None:
 
 
 @pytest.fixture
-def work(written, tmp_path) -> Path:
-    """A copy of every output, for one case to change."""
-    return Path(shutil.copytree(written, tmp_path / "work", symlinks=True))
+def work(written) -> Path:
+    """Every output as it was written, for one case to change."""
+    shutil.rmtree(written)
+    return Path(shutil.copytree(written.parent / "pristine", written, symlinks=True))
 
 
 def refused(work: Path, command: list, pattern: str) -> None:
