@@ -284,11 +284,14 @@ def check_manifest(folder: Path, *, option: str = "--out", nested: bool = True, 
         elif path.is_file() and not path.is_symlink() and relative in files:
             if relative in repairs or _unchanged(path, files[relative]):
                 continue
-            raise BwrError(f"{path}: changed since the twin wrote it (its size or sha256 is not the one in "
-                           f"{folder / MARKER_FILE}); the twin replaces only what it wrote: move it away, or "
-                           f"choose another {option}")
-        raise BwrError(f"{path}: was not written by the twin (not in {folder / MARKER_FILE}); the twin replaces "
-                       f"only what it wrote: move it away, or choose another {option}")
+            raise _not_as_written(path, folder / MARKER_FILE, option, changed=True)
+        raise _not_as_written(path, folder / MARKER_FILE, option, changed=False)
+
+
+def _not_as_written(path: Path, manifest: Path, option: str, *, changed: bool) -> BwrError:
+    why = (f"changed since the twin wrote it (its size or sha256 is not the one in {manifest})" if changed
+           else f"was not written by the twin (not in {manifest})")
+    return BwrError(f"{path}: {why}; the twin replaces only what it wrote: move it away, or choose another {option}")
 
 
 def check_resumed(folder: Path, option: str = "--out") -> None:
@@ -322,11 +325,9 @@ def check_recorded(path: Path, owner: Path | None, option: str) -> None:
         if not isinstance(files, dict):
             return
     if relative not in files or not path.is_file() or path.is_symlink():
-        raise BwrError(f"{path}: was not written by the twin (not in {where}); the twin replaces only what it "
-                       f"wrote: move it away, or choose another {option}")
+        raise _not_as_written(path, where, option, changed=False)
     if not _unchanged(path, files[relative]):
-        raise BwrError(f"{path}: changed since the twin wrote it (its size or sha256 is not the one in {where}); "
-                       f"the twin replaces only what it wrote: move it away, or choose another {option}")
+        raise _not_as_written(path, where, option, changed=True)
 
 
 def remove_stale_partials(path: Path) -> None:
