@@ -218,6 +218,7 @@ def _read_marker(path: Path) -> dict | None:
 # --- the manifest: what the twin wrote, file by file ------------------------------------------------
 
 FILES = "files"  # the marker's key of the manifest: {path relative to the folder: [size, sha256]}
+PENDING = "pending"  # the same of a file about to take its name: either is the twin's, if killed between
 _TEMPORARY = re.compile(r"\..+\.(?:partial|old)-[^/]+")  # the twin's temporary names, never recorded
 _HASH_CHUNK = 1 << 20
 
@@ -254,16 +255,27 @@ def record_folder(folder: Path) -> None:
     _write_marker(folder, {**(marker(folder) or {}), FILES: files})
 
 
-def record_file(path: Path, owner: Path | None = None) -> None:
-    """Record the file `path` the twin just wrote: in the marker of the folder `owner` that holds
-    it, or in its own manifest beside it."""
+def record_file(path: Path, owner: Path | None = None, *, entry: list | None = None, pending: bool = False) -> None:
+    """Record the file `path` the twin just wrote (or, `pending`, the `entry` of the file about to
+    replace it): in the marker of the folder `owner` that holds it, or in its own manifest beside it."""
+    entry = entry or file_record(path)
     if owner is None:
-        _write_marker(path.parent, {"written_by": "bwr_twin", FILES: {path.name: file_record(path)}},
-                      sidecar(path).name)
-        return
-    found = marker(owner) or {}
-    files = found.get(FILES) if isinstance(found.get(FILES), dict) else {}
-    _write_marker(owner, {**found, FILES: {**files, path.relative_to(owner).as_posix(): file_record(path)}})
+        found = (_read_marker(sidecar(path)) or {}) if pending else {}
+        relative, store, name = path.name, path.parent, sidecar(path).name
+    else:
+        found = marker(owner) or {}
+        relative, store, name = path.relative_to(owner).as_posix(), owner, MARKER_FILE
+    files, waiting = _dict(found.get(FILES)), _dict(found.get(PENDING))
+    if pending:
+        waiting[relative] = entry
+    else:
+        files[relative] = entry
+        waiting.pop(relative, None)
+    _write_marker(store, {**found, "written_by": "bwr_twin", FILES: files, PENDING: waiting}, name)
+
+
+def _dict(value: object) -> dict:
+    return dict(value) if isinstance(value, dict) else {}
 
 
 def check_manifest(folder: Path, *, option: str = "--out", nested: bool = True, repairs: Iterable[str] = ()) -> None:
@@ -272,17 +284,19 @@ def check_manifest(folder: Path, *, option: str = "--out", nested: bool = True, 
     A recorded file that is gone loses nothing. Without `nested` a subfolder with its own marker
     is not looked into (a batch's run: it is checked when replaced); `repairs` are files whose
     change the writer repairs (a batch's damaged metrics.json)."""
-    files = (marker(folder) or {}).get(FILES)
+    found = marker(folder) or {}
+    files = found.get(FILES)
     if not isinstance(files, dict):
         raise BwrError(f"{folder}: holds no record of the files the twin wrote in it (an earlier version wrote "
                        f"it); move it away, or choose another {option}")
-    folders = {"/".join(relative.split("/")[:k]) for relative in files for k in range(1, relative.count("/") + 1)}
+    known = {**_dict(found.get(PENDING)), **files}
+    folders = {"/".join(relative.split("/")[:k]) for relative in known for k in range(1, relative.count("/") + 1)}
     for path, relative in _walk(folder, nested=nested):
         if path.is_dir() and not path.is_symlink():
             if relative in folders or (not nested and marker(path) is not None):
                 continue
-        elif path.is_file() and not path.is_symlink() and relative in files:
-            if relative in repairs or _unchanged(path, files[relative]):
+        elif path.is_file() and not path.is_symlink() and relative in known:
+            if relative in repairs or _unchanged(path, found, relative):
                 continue
             raise _not_as_written(path, folder / MARKER_FILE, option, changed=True)
         raise _not_as_written(path, folder / MARKER_FILE, option, changed=False)
@@ -302,9 +316,11 @@ def check_resumed(folder: Path, option: str = "--out") -> None:
         check_manifest(folder, option=option, nested=False)
 
 
-def _unchanged(path: Path, recorded: object) -> bool:
-    return (isinstance(recorded, list) and len(recorded) == 2 and path.stat().st_size == recorded[0]
-            and file_record(path) == recorded)
+def _unchanged(path: Path, found: dict, relative: str) -> bool:
+    """Whether the manifest `found` records the file `path` (at `relative`) as it is."""
+    recorded = [_dict(found.get(key)).get(relative) for key in (FILES, PENDING)]
+    recorded = [entry for entry in recorded if isinstance(entry, list) and len(entry) == 2]
+    return any(path.stat().st_size == entry[0] for entry in recorded) and file_record(path) in recorded
 
 
 def check_recorded(path: Path, owner: Path | None, option: str) -> None:
@@ -314,19 +330,20 @@ def check_recorded(path: Path, owner: Path | None, option: str) -> None:
     if not path.exists() and not path.is_symlink():
         return
     if owner is None:
-        files = (_read_marker(sidecar(path)) or {}).get(FILES)
+        found = _read_marker(sidecar(path)) or {}
         where, relative = sidecar(path), path.name
-        if not isinstance(files, dict):
+        if not isinstance(found.get(FILES), dict):
             raise BwrError(f"{path}: holds no record of what the twin wrote (no {where.name} beside it); move "
                            f"it away, or choose another {option}")
     else:
-        files = (marker(owner) or {}).get(FILES)
+        found = marker(owner) or {}
         where, relative = owner / MARKER_FILE, path.relative_to(owner).as_posix()
-        if not isinstance(files, dict):
+        if not isinstance(found.get(FILES), dict):
             return
-    if relative not in files or not path.is_file() or path.is_symlink():
+    known = {**_dict(found.get(PENDING)), **found[FILES]}
+    if relative not in known or not path.is_file() or path.is_symlink():
         raise _not_as_written(path, where, option, changed=False)
-    if not _unchanged(path, files[relative]):
+    if not _unchanged(path, found, relative):
         raise _not_as_written(path, where, option, changed=True)
 
 
@@ -448,8 +465,10 @@ def write_atomically(path: Path, write: Callable[[Path], None], *, owner: Path |
         write(temporary)
         if owner is not None or record:
             check_recorded(path, owner, option)
+            entry = file_record(temporary)
+            record_file(path, owner, entry=entry, pending=True)  # killed before the rename or after: either is known
         os.replace(temporary, path)
     finally:
         temporary.unlink(missing_ok=True)
     if owner is not None or record:
-        record_file(path, owner)
+        record_file(path, owner, entry=entry)
