@@ -661,7 +661,8 @@ def test_cli_surface_writes_a_png(tmp_path):
     assert done.returncode == 0, done.stderr
     picture = (tmp_path / "tipper.png").read_bytes()
     assert picture[:8] == b"\x89PNG\r\n\x1a\n" and len(picture) > 20_000
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["tipper.png"]  # no temporary file left
+    # no temporary file left; the manifest beside it records what the twin wrote
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".tipper.png.bwr_twin", "tipper.png"]
 
 
 def test_cli_refuses_unsafe_outputs(tmp_path):
@@ -725,9 +726,8 @@ def test_cli_main_refusals_and_overwrite(tmp_path, capsys, monkeypatch):
     assert main(["convert", "tipper.fis", "taken.fis", "--overwrite"]) == 2
     assert "taken.fis: exists and was not written by bwr_twin.fis; it is left alone" in capsys.readouterr().err
     assert (tmp_path / "taken.fis").read_text() == "keep me\n"
-    assert main(["convert", "tipper.fis", "mine.fis"]) == 0
     (tmp_path / "taken.fis").unlink()
-    (tmp_path / "mine.fis").rename(tmp_path / "taken.fis")
+    assert main(["convert", "tipper.fis", "taken.fis"]) == 0
     assert main(["convert", "tipper.fis", "taken.fis", "--overwrite"]) == 0
     assert read_fis(tmp_path / "taken.fis") == read_fis(source)
     # Out-of-range inputs are evaluated clipped, with one warning line.

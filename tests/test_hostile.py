@@ -264,9 +264,10 @@ def test_the_catalogue_covers_every_class():
 def test_overwrite_replaces_a_run_directory_the_twin_wrote(tmp_path):
     write_short_scene(tmp_path)
     assert cli("run", "short.toml", "--out", "o", "--no-plots", cwd=tmp_path).returncode == 0
-    (tmp_path / "o" / "metrics.json").write_text("{}\n")  # so the replacement shows
+    before = (tmp_path / "o").stat().st_ino  # the folder is replaced whole: another one takes its name
     proc = cli("run", "short.toml", "--out", "o", "--no-plots", "--overwrite", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "o").stat().st_ino != before
     assert json.loads((tmp_path / "o" / "metrics.json").read_text())["travel"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "short.toml"]  # no staging folder left
 

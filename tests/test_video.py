@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, SHORT_VIA_POINTS, write_short_scene
 
-from bwr_twin.ownership import VIDEO_WRITER, written_by
+from bwr_twin.ownership import VIDEO_WRITER, sidecar, written_by
 from bwr_twin.replay import Recording
 from bwr_twin.replay.__main__ import main
 
@@ -63,7 +63,7 @@ def test_a_run_directory_becomes_an_h264_video_of_the_frames_size_and_duration_a
     assert len(frames) == frames_asked
     assert meta["duration"] == pytest.approx(frames_asked / 30, abs=0.05)
     assert written_by(out, VIDEO_WRITER)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.mp4"]  # no partial file left
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".short.mp4.bwr_twin", "short.mp4"]  # no partial file
     # The machine moves: the scene between header and chart strip changes from first to last frame.
     view = slice(40, 160)
     first, last = (frame[view].astype(int) for frame in (frames[0], frames[-1]))
@@ -204,7 +204,7 @@ def test_a_video_the_twin_wrote_is_replaced(short_run, tmp_path):
         assert main([str(short_run), "--video", str(own), "--size", "64x64", "--speed", speed]) == 0
     _, frames = _frames(own)
     assert len(frames) == round(SHORT_RUN * 30 / 50)  # the second video replaced the first
-    assert list(tmp_path.iterdir()) == [own]
+    assert sorted(tmp_path.iterdir()) == [sidecar(own), own]  # and its manifest
 
 
 def test_mujoco_gl_defaults_to_egl_and_a_missing_backend_is_one_line():

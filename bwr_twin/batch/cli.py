@@ -46,7 +46,7 @@ from bwr_twin.batch.engines import ERROR_FILE, DaskCluster, LocalPool, Outcome
 from bwr_twin.batch.report import PLOTS_DIR, SUMMARY_FILE, RunRecord, spread_table, write_plots, write_summary
 from bwr_twin.config.sweep import MAX_RUNS, PlannedRun, Sweep, load_sweep
 from bwr_twin.errors import BwrError
-from bwr_twin.ownership import BATCH_LOCK_FILE, check_output, mark, marker
+from bwr_twin.ownership import BATCH_LOCK_FILE, check_output, check_resumed, mark, marker
 from bwr_twin.results.rundir import METRICS_FILE, SCENE_FILE, publish_directory, staged_directory
 from bwr_twin.shipped import find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
@@ -55,6 +55,7 @@ from bwr_twin.sim.lockstep import lockstep_key
 STAGING_PATTERNS = (".*.partial-*", ".*.old-*")  # temporary names; staged_directory's too
 SUMMARY_EVERY_S = 2.0  # s between rewrites of summary.csv while runs complete
 MAX_CHUNK = 128  # runs a lockstep by default: 700 s records of 128 runs take about 300 MB
+REPAIRS = (METRICS_FILE,)  # a run directory's file whose damage a batch repairs by running it again
 
 
 class BatchLock:
@@ -167,11 +168,14 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
     started = time.perf_counter()
     records = {run.run_id: existing_record(out_dir, run) or RunRecord("pending") for run in sweep.runs}
     check_sweep_owns(out_dir, sweep)  # after the records: a run done differently is named first
+    check_resumed(out_dir)
     remove_debris(out_dir)
     todo = [run for run in sweep.runs if records[run.run_id].status == "pending"
             or (retry_failed and records[run.run_id].status == "failed")]
     # Run directories to replace: failed ones retried, and damaged ones (pending with a reason).
     replace = {run.run_id for run in todo if records[run.run_id].error}
+    for run_id in sorted(replace):  # each holds only what the twin wrote, before anything runs
+        check_output(out_dir / run_id, "run", overwrite=True, repairs=REPAIRS)
     damaged = [run.run_id for run in todo if run.run_id in replace and records[run.run_id].status == "pending"]
     if damaged:
         print(f"note: {len(damaged)} run directories in {out_dir} have no readable {METRICS_FILE} "
@@ -233,7 +237,7 @@ def _publish(out_dir: Path, outcome: Outcome, *, replace: bool) -> None:
             publish_directory(Path(outcome.folder), target)
         return
     if outcome.files:
-        with staged_directory(out_dir / outcome.run_id, overwrite=replace) as staging:
+        with staged_directory(out_dir / outcome.run_id, overwrite=replace, repairs=REPAIRS) as staging:
             for name, content in outcome.files.items():
                 (staging / name).write_bytes(content)
 

@@ -27,7 +27,7 @@ from typing import Any
 from bwr_twin.batch.report import Status
 from bwr_twin.config.sweep import PlannedRun
 from bwr_twin.errors import BwrError
-from bwr_twin.ownership import mark
+from bwr_twin.ownership import mark, record_folder
 from bwr_twin.results.rundir import SCENE_FILE, write_run
 from bwr_twin.sim.lockstep import simulate_lockstep
 
@@ -84,6 +84,7 @@ def _outcome_of(run: PlannedRun, result: Any, *, plots: bool, scratch: str | Non
             mark(folder, "run")
             (folder / ERROR_FILE).write_text(report)
             (folder / SCENE_FILE).write_text(json.dumps(run.scene.to_dict(), indent=2) + "\n")
+            record_folder(folder)
             status, error, metrics = "failed", report.splitlines()[0], None
         else:
             metrics = write_run(result, folder, plots=plots)

@@ -52,7 +52,7 @@ def write_summary(out_dir: Path, sweep: Sweep, records: dict[str, RunRecord]) ->
             writer.writeheader()
             writer.writerows(rows)
 
-    write_atomically(out_dir / SUMMARY_FILE, write)
+    write_atomically(out_dir / SUMMARY_FILE, write, owner=out_dir)  # recorded in DIR's manifest
 
 
 def _flat_metrics(metrics: dict) -> dict[str, float]:
@@ -127,7 +127,7 @@ def _distribution_plot(path: Path, sweep: Sweep, done: list[PlannedRun],
                       ha="right" if len(groups) > 1 else "center")
         ax.set_xlabel(", ".join(parameter_label(key) for key in sweep.keys) or "seeds")
     fig.suptitle(f"{sweep.path.stem}: largest errors of {len(done)} runs (box: quartiles, whiskers: 1.5 IQR)")
-    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), owner=path.parent.parent)
     return path
 
 
@@ -166,7 +166,7 @@ def _heat_map(path: Path, sweep: Sweep, grid: tuple[str, str], done: list[Planne
         ax.set_title(f"{AXES[j]}: |position error max| [{UNITS[j]}]")
         fig.colorbar(mesh, ax=ax, label=f"{AXES[j]} [{UNITS[j]}], median over seeds")
     fig.suptitle(f"{sweep.path.stem}: largest position error over the grid (grey: no successful run)")
-    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), owner=path.parent.parent)
     return path
 
 

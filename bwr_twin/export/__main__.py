@@ -5,7 +5,10 @@
 
 `plc` writes the controller as IEC 61131-3 Structured Text into DIR (bwr_twin.export.plc). DIR must
 not exist, or be an export the twin wrote and --overwrite be given. `fmu` writes one run of the
-scene as an FMI 2.0 co-simulation FMU (bwr_twin.export.fmu), replacing only an FMU the twin wrote.
+scene as an FMI 2.0 co-simulation FMU (bwr_twin.export.fmu); an existing one is replaced only with
+--overwrite, and only if the twin wrote it. --overwrite replaces only what the twin wrote, unchanged
+since (its manifest, bwr_twin.ownership): a file of the engineer's in DIR, or one edited, is named
+and refused.
 A bad scene exits with status 2 and one line on stderr, and nothing is written.
 """
 
@@ -33,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
     fmu = commands.add_parser("fmu", help="one run of the scene as an FMI 2.0 co-simulation FMU")
     fmu.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
-    fmu.add_argument("--out", required=True, type=Path, help="the .fmu file to write (one the twin wrote is "
-                     "replaced)")
+    fmu.add_argument("--out", required=True, type=Path, help="the .fmu file to write (must not exist)")
+    fmu.add_argument("--overwrite", action="store_true", help="replace FILE, an FMU the twin wrote")
     args = parser.parse_args(argv)
     return exit_status(lambda: {"plc": _plc, "fmu": _fmu}[args.command](args))
 
@@ -56,7 +59,7 @@ def _fmu(args) -> int:
     from bwr_twin.export.fmu import export_fmu
     from bwr_twin.shipped import find_scene
 
-    print(export_fmu(load_scene(find_scene(args.scene)), args.out))
+    print(export_fmu(load_scene(find_scene(args.scene)), args.out, overwrite=args.overwrite))
     return 0
 
 

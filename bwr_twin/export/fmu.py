@@ -9,7 +9,8 @@
         resources/pythonfmu/          pythonfmu's Python side
 
 The importing machine needs Python with `bwr_twin` installed (docs/fmu.md). The archive's comment
-is the twin's mark: an existing .fmu is replaced only if the twin wrote it, and only whole.
+is the twin's mark: an existing .fmu is replaced only with --overwrite, if the twin wrote it and it is
+unchanged since (the manifest beside it, bwr_twin.ownership), and only whole.
 """
 
 from __future__ import annotations
@@ -26,9 +27,10 @@ from bwr_twin.export import fmu_slave
 from bwr_twin.ownership import FMU_WRITER, check_output, write_atomically
 
 
-def export_fmu(scene: Scene, out: Path) -> Path:
-    """Write the scene as the FMU `out` (an .fmu file the twin wrote is replaced); returns `out`."""
-    check_output(out, "fmu", inputs=scene.input_files)  # before any work: a refusal costs nothing
+def export_fmu(scene: Scene, out: Path, *, overwrite: bool = False) -> Path:
+    """Write the scene as the FMU `out` (an .fmu file the twin wrote, unchanged since, is replaced
+    with `overwrite`); returns `out`."""
+    check_output(out, "fmu", overwrite=overwrite, inputs=scene.input_files)  # before any work: a refusal costs nothing
     from pythonfmu.builder import FmuBuilder  # imported here: the twin's other commands never need it
 
     with tempfile.TemporaryDirectory(prefix="bwr_twin_fmu_") as folder:
@@ -42,8 +44,8 @@ def export_fmu(scene: Scene, out: Path) -> Path:
                              needsExecutionTool="true", canHandleVariableCommunicationStepSize="true")
         with zipfile.ZipFile(built, "a") as archive:
             archive.comment = FMU_WRITER.encode()
-        check_output(out, "fmu", inputs=scene.input_files)  # again, just before anything is replaced
-        write_atomically(out, lambda partial: shutil.copyfile(built, partial))
+        check_output(out, "fmu", overwrite=overwrite, inputs=scene.input_files)  # again, just before anything is replaced
+        write_atomically(out, lambda partial: shutil.copyfile(built, partial), record=True)
     return out
 
 

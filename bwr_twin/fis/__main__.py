@@ -29,7 +29,7 @@ from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import SceneError, exit_status
-from bwr_twin.ownership import picture_metadata, text_mark, written_by
+from bwr_twin.ownership import check_recorded, picture_metadata, text_mark, written_by
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 # What a command samples at most, counted before anything is allocated: far beyond any use
@@ -366,6 +366,7 @@ def _check_destination(source: Path, out: Path, overwrite: bool) -> None:
         if not written_by(out, WRITER):  # the twin replaces only what it wrote
             raise SceneError(f"{out}: exists and was not written by bwr_twin.fis; it is left alone, "
                              "choose another output")
+        check_recorded(out, None, "output")  # and unchanged since: its manifest beside it
     elif not out.parent.is_dir():
         raise SceneError(f"{out}: the directory {out.parent} does not exist")
 
@@ -374,7 +375,7 @@ def _write(out: Path, write) -> None:
     from bwr_twin.ownership import write_atomically
 
     try:
-        write_atomically(out, write)
+        write_atomically(out, write, record=True, option="output")
     except OSError as exc:
         raise SceneError(f"{out}: cannot write: {exc.strerror or exc} (nothing written)") from None
 

@@ -61,7 +61,7 @@ def export_html(
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
     html = html.replace("<head>", f"<head>{HTML_TAG}", 1)  # how a later export knows it may replace this
-    write_atomically(path, lambda partial: partial.write_text(html, encoding="utf-8"))
+    write_atomically(path, lambda partial: partial.write_text(html, encoding="utf-8"), record=True, option="--export")
     return path.stat().st_size
 
 

@@ -127,7 +127,8 @@ def write_video(
         per_frame = (time.perf_counter() - measuring) / max(1, len(first) - 1)
         _check_cost(path, len(times), size, per_frame, force)
         frames = _rendered(renderer, times, first, progress)
-        write_atomically(path, lambda partial: _encode(partial, path, frames, size, fps))
+        write_atomically(path, lambda partial: _encode(partial, path, frames, size, fps), record=True,
+                         option="--video")
     finally:
         renderer.close()
     return Written(len(times), len(times) / fps, path.stat().st_size, time.perf_counter() - started)

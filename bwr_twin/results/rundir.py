@@ -28,7 +28,7 @@ import numpy as np
 
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
-from bwr_twin.ownership import check_output, mark
+from bwr_twin.ownership import check_output, mark, record_folder, remove_stale_partials
 from bwr_twin.signals import LOOP, NEIGHBOUR, RECLAIM
 from bwr_twin.signals import column_name as signal_column
 from bwr_twin.sim.record import RunResult
@@ -91,27 +91,31 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def staged_directory(out_dir: Path, *, overwrite: bool = False, kind: str = "run") -> Iterator[Path]:
+def staged_directory(out_dir: Path, *, overwrite: bool = False, kind: str = "run",
+                     repairs: tuple[str, ...] = ()) -> Iterator[Path]:
     """A temporary sibling of `out_dir`, marked as the twin's `kind` of output, that is renamed
-    into place only if the block succeeds.
+    into place, its files recorded in its marker, only if the block succeeds.
 
-    An existing `out_dir` is replaced only if the twin wrote it and `overwrite` is given
-    (bwr_twin.ownership), and only once the new one is complete. On any failure the
-    temporary directory is removed and `out_dir` is untouched.
+    An existing `out_dir` is replaced only if the twin wrote it, holds nothing but what its
+    manifest records (but for `repairs`) and `overwrite` is given (bwr_twin.ownership), and only
+    once the new one is complete. On any failure the temporary directory is removed and `out_dir`
+    is untouched; what killed writers of `out_dir` left beside it is removed first.
     """
     out_dir = Path(out_dir)
-    check_output(out_dir, kind, overwrite=overwrite)
+    check_output(out_dir, kind, overwrite=overwrite, repairs=repairs)
     try:
         out_dir.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
+        remove_stale_partials(out_dir)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-{os.getpid()}-", dir=out_dir.parent))
     except OSError as exc:
         raise BwrError(f"{out_dir}: cannot create it: {exc.strerror}") from None
     try:
         staging.chmod(0o777 & ~_umask())  # mkdtemp's 0700 would make results private
         mark(staging, kind)
         yield staging
+        record_folder(staging)
         if out_dir.exists():
-            check_output(out_dir, kind, overwrite=overwrite)  # still the twin's, just before it goes
+            check_output(out_dir, kind, overwrite=overwrite, repairs=repairs)  # still the twin's, just before it goes
         publish_directory(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)

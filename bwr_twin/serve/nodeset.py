@@ -31,7 +31,8 @@ async def write_nodeset(server: Server, namespace_uri: str, path: Path, *, overw
     text = f"<?xml version='1.0' encoding='utf-8'?>\n{xml_mark(NODESET_WRITER)}\n{body}\n"
     check_output(path, "nodeset", overwrite=overwrite, option="--nodeset")  # again, just before replacing
     try:
-        write_atomically(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+        write_atomically(path, lambda temporary: temporary.write_text(text, encoding="utf-8"), record=True,
+                         option="--nodeset")
     except OSError as exc:
         raise ServeError(f"--nodeset {path}: cannot write it ({exc.strerror or exc}); nothing written") from None
     return len(nodes)

@@ -89,13 +89,15 @@ def _tune(tuning, out: Path, *, workers: int | None, scheduler: str | None) -> i
 
     from bwr_twin.batch.cli import remove_debris
     from bwr_twin.batch.engines import DaskCluster, LocalPool
+    from bwr_twin.ownership import check_resumed
     from bwr_twin.tune.objective import axis_means, score
     from bwr_twin.tune.outputs import write_convergence, write_history
     from bwr_twin.tune.state import TunerState
 
     started = time.perf_counter()
     remove_debris(out)  # what a killed tuning's workers left
-    state = TunerState.load(out)
+    state = TunerState.load(out)  # a damaged state is named as such first
+    check_resumed(out)  # then anything else not as the twin wrote it
     engine = DaskCluster(scheduler) if scheduler else LocalPool(workers or os.cpu_count() or 1, out)
     with engine:
         if state is None:  # the start point alone sets the normalisers

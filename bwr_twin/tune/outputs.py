@@ -31,7 +31,7 @@ def write_best_scene(folder: Path, tuning: Tuning, values: Sequence[float], obje
               f" each normalised per axis by its value at the start).\n"
               f"Base scene: {tuning.base.path}. Runs as it is: python -m bwr_twin.run best_scene.toml --out DIR")
     text = scene_toml(scene, header)
-    write_atomically(folder / "best_scene.toml", lambda partial: partial.write_text(text))
+    write_atomically(folder / "best_scene.toml", lambda partial: partial.write_text(text), owner=folder)
 
 
 def write_history(folder: Path, rows: list[dict]) -> None:
@@ -45,7 +45,7 @@ def write_history(folder: Path, rows: list[dict]) -> None:
             writer.writeheader()
             writer.writerows(rows)
 
-    write_atomically(folder / "history.csv", write)
+    write_atomically(folder / "history.csv", write, owner=folder)
 
 
 def write_convergence(folder: Path, tuning: Tuning, rows: list[dict]) -> None:
@@ -66,7 +66,8 @@ def write_convergence(folder: Path, tuning: Tuning, rows: list[dict]) -> None:
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="upper right")
     fig.suptitle(f"CMA-ES on {tuning.path.name}: {len(rows)} evaluations")
-    write_atomically(folder / "convergence.png", lambda partial: fig.savefig(partial, dpi=110, format="png"))
+    write_atomically(folder / "convergence.png", lambda partial: fig.savefig(partial, dpi=110, format="png"),
+                     owner=folder)
 
 
 def held_out_rows(start: Sequence[dict], tuned: Sequence[dict]) -> list[dict]:
@@ -86,7 +87,7 @@ def write_held_out(folder: Path, rows: list[dict], seeds: Sequence[int]) -> str:
     writer = csv.DictWriter(out, list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-    write_atomically(folder / "held_out.csv", lambda partial: partial.write_text(out.getvalue()))
+    write_atomically(folder / "held_out.csv", lambda partial: partial.write_text(out.getvalue()), owner=folder)
     lines = [f"Held-out seeds {list(seeds)} (never seen by the tuner): mean over the seeds.", "",
              "| axis | metric | start | tuned | tuned / start |", "| --- | --- | --- | --- | --- |"]
     for row in rows:
@@ -97,5 +98,5 @@ def write_held_out(folder: Path, rows: list[dict], seeds: Sequence[int]) -> str:
         lines.append(f"| {row['axis']} | {row['metric']} [{unit}] | {show(row['start']):.4g} | "
                      f"{show(row['tuned']):.4g} | {row['tuned/start']:.3f} |")
     text = "\n".join(lines) + "\n"
-    write_atomically(folder / "held_out.md", lambda partial: partial.write_text(text))
+    write_atomically(folder / "held_out.md", lambda partial: partial.write_text(text), owner=folder)
     return text

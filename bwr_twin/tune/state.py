@@ -33,7 +33,8 @@ class TunerState:
 
     def save(self, folder: Path) -> None:
         self.random_state = np.random.get_state()
-        write_atomically(folder / STATE_FILE, lambda partial: partial.write_bytes(pickle.dumps(self)))
+        write_atomically(folder / STATE_FILE, lambda partial: partial.write_bytes(pickle.dumps(self)),
+                         owner=folder)
 
     @classmethod
     def load(cls, folder: Path) -> TunerState | None:
