@@ -247,11 +247,16 @@ def test_the_charts_cursor_follows_the_timeline_and_a_click_seeks_it(four_runs_p
     lefts = []
     for t in (5.0, 15.0):
         server.player.seek(t)
-        page.wait_for_function(f"() => {CURSOR}?.dataset.time === '{t:g}'", timeout=WAIT_MS, polling=100)
+        # The cursor takes the time first and its place once the chart is laid out: wait for both,
+        # however long a busy machine takes to lay it out, within a pixel of the chart's own x.
+        page.wait_for_function(f"""() => {{
+            const cursor = {CURSOR}, chart = Object.values(window.__viserTestpoints.uplots)[0]?.chart;
+            if (!cursor || !chart || cursor.dataset.time !== '{t:g}') return false;
+            const left = parseFloat(cursor.style.left), x = chart.valToPos({t}, 'x');
+            return Number.isFinite(left) && Number.isFinite(x) && Math.abs(left - x) <= 1.0;
+        }}""", timeout=WAIT_MS, polling=100)
         lefts.append(page.evaluate(f"() => parseFloat({CURSOR}.style.left)"))
-    expected = page.evaluate("""() => { const c = Object.values(window.__viserTestpoints.uplots)[0].chart;
-                                        return [c.valToPos(5, 'x'), c.valToPos(15, 'x')]; }""")
-    assert lefts == pytest.approx(expected, abs=1.0) and lefts[1] > lefts[0] + 20
+    assert lefts[1] > lefts[0] + 20
     # A click at 12 s on the first chart seeks there.
     chart = page.locator(".uplot-container .u-over").first
     chart.scroll_into_view_if_needed(timeout=WAIT_MS)
