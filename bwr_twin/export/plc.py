@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
+from bwr_twin.sim.scaling import check_surface_grid
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
 from bwr_twin.errors import SceneError
@@ -158,6 +159,7 @@ ERROR_POINTS = 20_000  # random inputs a table of another grid is measured on (a
 
 def _surface_on(rule_base, grid: int, twins: int, notes: list[str]) -> FuzzySurface:
     """The surface on `grid` points per input, and a README note of its measured error bound."""
+    check_surface_grid(grid, 2 * (len(rule_base.sets) - 1))  # before a point is inferred
     try:
         surface = FuzzySurface.load(rule_base, grid_points=grid)
     except ValueError as exc:
