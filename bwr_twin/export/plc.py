@@ -21,7 +21,6 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from bwr_twin.sim.scaling import check_surface_grid
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
 from bwr_twin.errors import SceneError
@@ -42,6 +41,7 @@ from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, blo
 from bwr_twin.model.machine import Machine
 from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import staged_directory
+from bwr_twin.sim.scaling import check_surface_grid
 
 PID_BLOCK = "FB_BwrPid"
 COMPUTED_TORQUE_BLOCK = "FB_BwrComputedTorque"

@@ -32,9 +32,13 @@ FAULT_S = 0.7e-3
 FAULT_BYTES = 16_000
 MAX_FAULTS = 1_000  # a run's faults without --force: the shipped scenarios schedule a handful
 
-# The stacking's relaxation (tools/relaxation_speed.py): about 1 ms a deposit on 47,500 cells.
+# The stacking's deposit: 1.5 ms (tools/relaxation_speed.py: about 1 ms on 47,500 cells of 0.5 m), and
+# its relaxation, whose moves grow with the cells and whose rounds with the cells a face spans: a cell
+# and (0.5 m / spacing)^2, measured on heavy_chevron_stack of 2,000 t (2,880 deposits) at 0.5, 0.125 and
+# 0.0625 m: 11 s, 51 s and more than 400 s a run.
 DEPOSIT_S = 1.5e-3
-DEPOSIT_CELLS = 47_500
+DEPOSIT_CELL_S = 1.2e-8
+DEPOSIT_SPACING = 0.5  # m
 LAYER_BYTES = 16  # a layer's thickness and grade, float64, a cell
 RELAXATION_CELL_BYTES = 64  # the heights and the relaxation's work arrays, a cell
 
@@ -133,7 +137,7 @@ def parts(scene: Scene, duration: float) -> list[Part]:
         cells = float(len(x)) * float(len(y))
         deposits = duration / s.deposit_period
         found.append(Part("stacking.grid_spacing", "cells of the stacked pile", cells,
-                          deposits * DEPOSIT_S * max(cells / DEPOSIT_CELLS, 1.0),
+                          deposits * (DEPOSIT_S + DEPOSIT_CELL_S * cells * (DEPOSIT_SPACING / s.grid_spacing) ** 2),
                           cells * (s.max_layers * LAYER_BYTES + RELAXATION_CELL_BYTES)))
     return found
 
@@ -179,7 +183,8 @@ def duration_text(seconds: float) -> str:
         return f"{seconds / 60:.0f} min"
     if seconds < 2 * 86400:
         return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.3g} days"
+    days = seconds / 86400
+    return f"{days:.3g} days" if days < 1000 else f"{days:,.0f} days"
 
 
 def bytes_text(count: float) -> str:
