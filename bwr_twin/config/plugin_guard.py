@@ -49,7 +49,7 @@ class _Watch:
     call: tuple | None = None
     overrun: tuple | None = None
     budget: float = DEFAULT_BUDGET_S
-    started = False
+    started = 0  # the id of the process that started the guard: a forked worker starts its own
 
 
 watch = _Watch()
@@ -72,13 +72,12 @@ def start() -> None:
     handler and the watchdog thread, once a process. Does nothing off the main thread, or where
     SIGALRM already has a handler of someone else's."""
     global _pid
-    if watch.started or threading.current_thread() is not threading.main_thread():
+    if watch.started == os.getpid() or threading.current_thread() is not threading.main_thread():
         return
-    watch.started = True
-    _pid = os.getpid()
+    watch.started = _pid = os.getpid()
     os._exit = _guarded_exit
     watch.budget = budget()
-    if watch.budget <= 0 or signal.getsignal(signal.SIGALRM) not in (signal.SIG_DFL, None):
+    if watch.budget <= 0 or signal.getsignal(signal.SIGALRM) not in (signal.SIG_DFL, None, _on_alarm):
         return
     signal.signal(signal.SIGALRM, _on_alarm)
     threading.Thread(target=_watchdog, args=(watch.budget, threading.get_ident()), name="bwr_twin plug-in watchdog",
