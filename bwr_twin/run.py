@@ -78,7 +78,7 @@ def _run(args: argparse.Namespace) -> int:
         raise SceneError(f"--pile replaces a scene's pile, and {path} has no [stockpile]")
     scene = load_scene(path, scene_overrides(args.model, args.seed, args.pile))
     check_output(args.out, "run", overwrite=args.overwrite, inputs=scene.input_files)
-    cost = estimate([scene], plots=not args.no_plots)
+    cost = estimate([scene], plots=not args.no_plots, force=args.force)
     check_estimate(cost, where=scene.path, out_dir=args.out, force=args.force)
     started = time.perf_counter()
     with simulated_seconds() as progress:

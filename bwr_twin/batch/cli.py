@@ -190,7 +190,7 @@ def run_batch(sweep: Sweep, out_dir: Path, *, workers: int | None, scheduler: st
             with engine, _progress_bar(len(todo), sweep) as bar:  # nothing is written if it cannot start
                 locksteps = plan_locksteps(todo, workers=engine.workers, chunk=chunk)
                 cost = estimate([run.scene for run in todo], workers=engine.workers,
-                                chunk=max(map(len, locksteps)), plots=plots)
+                                chunk=max(map(len, locksteps)), plots=plots, force=force)
                 check_estimate(cost, where=sweep.path, out_dir=out_dir, force=force)
                 claim(out_dir, sweep)
                 write_summary(out_dir, sweep, records)

@@ -31,7 +31,7 @@ import numpy as np
 
 from bwr_twin.collision.machines import MachineClearance
 from bwr_twin.collision.monitor import PileClearance, levers_of
-from bwr_twin.config.plugin_calls import call, checked, construct, describe
+from bwr_twin.config.plugin_calls import call, checked, construct, describe, reported
 from bwr_twin.config.plugins import interlock_class
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import PluginError
@@ -148,4 +148,4 @@ class Guard:
             self._fraction[run] = fraction - whole
 
     def interventions(self, run: int) -> list[dict]:
-        return list(self.interlock.interventions[run])
+        return reported(self._label, f"interventions of run {run}", list(self.interlock.interventions[run]))

@@ -71,7 +71,7 @@ def _compare(args: argparse.Namespace) -> int:
         limit = f"{PLANNABLE_RUNS:,}" if runs > PLANNABLE_RUNS else f"{MAX_RUNS:,} without --force"
         raise BwrError(f"--seeds {args.seeds}: {len(sources)} controllers x {args.seeds} seeds are {runs:,} runs, "
                        f"more than the {limit}; choose fewer --seeds")
-    check_estimate(_scaled(estimate(firsts, chunk=args.seeds), args.seeds), where=f"{base}: --seeds {args.seeds}",
+    check_estimate(_scaled(estimate(firsts, chunk=args.seeds, force=args.force), args.seeds), where=f"{base}: --seeds {args.seeds}",
                    out_dir=args.out, force=args.force)
     groups = [[first, *(load_scene(base, {"controller": table, "simulation.seed": seed})
                         for seed in range(2, args.seeds + 1))] for first, table in zip(firsts, tables)]

@@ -12,6 +12,7 @@ would make a scene say what it does not do.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +37,21 @@ _KEYS = {
 FAULT_KINDS = tuple(_KEYS)
 _OPTIONAL = ("axis", "scanner", "rate", "sigma", "periods")  # the keys only some kinds use
 _SCANNER_PREFIX = "scanner"  # a scanner is a site whose name starts with it (the model contract)
+
+# The most [[faults]] tables a scene file may hold, counted in its text before it is parsed: 100,000
+# took 15 s to read and 64 s and 1.5 GB to run. A run with more than bwr_twin.sim.scaling's
+# MAX_FAULTS needs --force; none holds more than this.
+MOST_FAULTS = 10_000
+_TABLE = re.compile(r"^[ \t]*\[\[[ \t]*faults[ \t]*\]\]", re.MULTILINE)
+
+
+def check_fault_count(path: Path, text: str) -> None:
+    """SceneError naming the file and the count if its text holds more than MOST_FAULTS
+    [[faults]] tables: refused before the file is parsed."""
+    count = len(_TABLE.findall(text))
+    if count > MOST_FAULTS:
+        raise SceneError(f"{path}: 'faults' holds {count:,} [[faults]] tables, more than the {MOST_FAULTS:,} a scene "
+                         f"may hold (about {count * 0.8e-3:.0f} s and {count * 16e-6:.2g} GB to read and run them)")
 
 
 @dataclass(frozen=True)

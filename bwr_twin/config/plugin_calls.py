@@ -1,7 +1,8 @@
 """An engineer's controller or rate control, called so that its failures are its own.
 
 Whatever a plug-in raises (SystemExit included) becomes one line that names its class, its file
-and the call, what it raised and when (simulated time): a `PluginError`. What it returns is
+and the call, what it raised and when (simulated time): a `PluginError`; so does an `os._exit()`
+and a call that runs beyond its time budget (bwr_twin.config.plugin_guard). What it returns is
 checked before it reaches the plant: the wrong shape, None, strings or complex numbers fail the
 lockstep the same way; a non-finite value fails only the runs it was returned for (the loop
 stops them, `Lockstep.advance`).
@@ -9,11 +10,14 @@ stops them, `Lockstep.advance`).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from bwr_twin.config import plugin_guard
+from bwr_twin.config.plugin_guard import BUDGET_VARIABLE, Exited, Overrun, watch
 from bwr_twin.config.plugins import is_file_reference
 from bwr_twin.errors import PluginError
 
@@ -24,19 +28,55 @@ def describe(type_name: str, cls: type) -> str:
 
 
 def construct(label: str, cls: type, *args: Any) -> Any:
-    """cls(*args); PluginError naming `label` if its __init__ raises."""
+    """cls(*args); PluginError naming `label` if its __init__ raises, exits or overruns the budget.
+    Starts the guard of the calls that follow (bwr_twin.config.plugin_guard)."""
+    plugin_guard.start()
+    name = f"{cls.__name__}.__init__"
+    watch.call = current = (label, name, 0.0)
     try:
         return cls(*args)
+    except Overrun:
+        raise PluginError(_overrun(label, name, None)) from None
+    except Exited as exc:
+        raise PluginError(f"{label}: {name}() called os._exit({exc.code})") from None
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
-        raise PluginError(f"{label}: {cls.__name__}.__init__() raised {_raised(exc)}") from None
+        raise PluginError(f"{label}: {name}() raised {_raised(exc)}") from None
+    finally:
+        if watch.call is current:
+            watch.call = None
 
 
 def call(label: str, method: Callable, name: str, time: float, *args: Any) -> Any:
-    """method(*args); PluginError naming `label`, the call and the simulated `time` (s) if it raises."""
+    """method(*args); PluginError naming `label`, the call and the simulated `time` (s) if it
+    raises, exits or runs beyond the budget of a call."""
+    watch.call = (label, name, time)  # what the watchdog sees: all the guard costs a call
     try:
         return method(*args)
+    except Overrun:
+        raise PluginError(_overrun(label, name, time)) from None
+    except Exited as exc:
+        raise PluginError(f"{label}: {name}() called os._exit({exc.code}) at t = {time:.2f} s") from None
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
         raise PluginError(f"{label}: {name}() raised {_raised(exc)} at t = {time:.2f} s") from None
+    finally:
+        watch.call = None
+
+
+def reported(label: str, name: str, value: Any) -> Any:
+    """`value`, a plug-in's report for metrics.json, if JSON can hold it; PluginError naming what
+    it cannot (a set, an object, a dict with keys that are not strings)."""
+    try:
+        json.dumps(value)
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise PluginError(f"{label}: its {name} cannot be written as JSON ({exc}); report numbers, strings, "
+                          f"booleans, None, lists and dicts with string keys: {_short(value)}") from None
+    return value
+
+
+def _overrun(label: str, name: str, time: float | None) -> str:
+    when = "" if time is None else f" at t = {time:.2f} s"
+    return (f"{label}: {name}() ran longer than its budget of {watch.budget:g} s a call{when} and was stopped; "
+            f"set {BUDGET_VARIABLE} (s, 0 for none) to give it longer")
 
 
 def checked(label: str, name: str, value: Any, shape: tuple[int, ...], time: float) -> np.ndarray:

@@ -20,7 +20,9 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from bwr_twin.errors import SceneError
+from bwr_twin.config import plugin_guard
+from bwr_twin.config.plugin_guard import Exited, Overrun, watch
+from bwr_twin.errors import PluginError, SceneError
 
 
 @dataclass(frozen=True)
@@ -129,12 +131,26 @@ def class_in_file(file: Path, attribute: str, base: type, key: str) -> type:
     module_name = f"bwr_twin_user_class_{hashlib.sha256(str(file).encode()).hexdigest()[:12]}"
     spec = importlib.util.spec_from_file_location(module_name, file)
     module = importlib.util.module_from_spec(spec)
+    plugin_guard.start()  # sys.exit, os._exit and a hang at import become errors naming the file
+    watch.call = current = (str(file), "import", 0.0)
     try:
         spec.loader.exec_module(module)
     except SyntaxError as exc:
         raise SceneError(f"{file}:{exc.lineno}: {exc.msg}") from None
+    except SystemExit as exc:
+        raise PluginError(f"{file}: importing it called sys.exit({'' if exc.code is None else repr(exc.code)}) "
+                          f"('{key}'): a plug-in must not end the twin") from None
+    except Exited as exc:
+        raise PluginError(f"{file}: importing it called os._exit({exc.code!r}) ('{key}'): a plug-in must not end "
+                          "the twin") from None
+    except Overrun:
+        raise PluginError(f"{file}: importing it ran longer than the budget of {watch.budget:g} s a plug-in call "
+                          f"('{key}'); set {plugin_guard.BUDGET_VARIABLE} (s, 0 for none) to give it longer") from None
     except Exception as exc:  # noqa: BLE001 - the engineer's file failed to import: say where
         raise SceneError(f"{file}: importing it raised {type(exc).__name__}: {exc}") from None
+    finally:
+        if watch.call is current:
+            watch.call = None
     sys.modules[module_name] = module  # dataclasses and pickling look classes up by module
     cls = getattr(module, attribute, None)
     if not (isinstance(cls, type) and issubclass(cls, base)):

@@ -26,7 +26,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from bwr_twin.config.bounds import check_bounds
-from bwr_twin.config.faults import FaultSection, check_faults
+from bwr_twin.config.faults import FaultSection, check_fault_count, check_faults
 from bwr_twin.config.plugins import (
     CONTROLLERS,
     INTERLOCKS,
@@ -431,7 +431,9 @@ def _read_raw(path: Path, extended_by: tuple[Path, ...]) -> dict:
         by = f" (extended by {extended_by[-1]})" if extended_by else ""
         raise SceneError(f"{path}: scene file not found{by}")
     try:
-        raw = tomllib.loads(read_text(path))
+        text = read_text(path)
+        check_fault_count(path, text)  # before a table is parsed
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None
     except UnicodeDecodeError:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import exit_status
+from bwr_twin.sim.budget import FORCE_HELP
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     fmu.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
     fmu.add_argument("--out", required=True, type=Path, help="the .fmu file to write (must not exist)")
     fmu.add_argument("--overwrite", action="store_true", help="replace FILE, an FMU the twin wrote")
+    fmu.add_argument("--force", action="store_true", help=FORCE_HELP)
     args = parser.parse_args(argv)
     return exit_status(lambda: {"plc": _plc, "fmu": _fmu}[args.command](args))
 
@@ -59,7 +61,11 @@ def _fmu(args) -> int:
     from bwr_twin.export.fmu import export_fmu
     from bwr_twin.shipped import find_scene
 
-    print(export_fmu(load_scene(find_scene(args.scene)), args.out, overwrite=args.overwrite))
+    from bwr_twin.sim.budget import check_scenes
+
+    scene = load_scene(find_scene(args.scene))
+    check_scenes([scene], where=scene.path, out_dir=args.out.parent, force=args.force)  # the run the FMU will make
+    print(export_fmu(scene, args.out, overwrite=args.overwrite))
     return 0
 
 

@@ -41,6 +41,7 @@ from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, blo
 from bwr_twin.model.machine import Machine
 from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import staged_directory
+from bwr_twin.sim.scaling import check_surface_grid
 
 PID_BLOCK = "FB_BwrPid"
 COMPUTED_TORQUE_BLOCK = "FB_BwrComputedTorque"
@@ -158,6 +159,7 @@ ERROR_POINTS = 20_000  # random inputs a table of another grid is measured on (a
 
 def _surface_on(rule_base, grid: int, twins: int, notes: list[str]) -> FuzzySurface:
     """The surface on `grid` points per input, and a README note of its measured error bound."""
+    check_surface_grid(grid, 2 * (len(rule_base.sets) - 1))  # before a point is inferred
     try:
         surface = FuzzySurface.load(rule_base, grid_points=grid)
     except ValueError as exc:

@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         lead = _open(sources, args.runs, use_cache=not args.no_cache)
         recording, scene = lead.recording, lead.scene
         if recording is None:  # before the plan is sampled: a runaway path is refused, not allocated
-            check_estimate(estimate([scene]), where=scene.path, out_dir=Path("out"), force=args.force)
+            check_estimate(estimate([scene], force=args.force), where=scene.path, out_dir=Path("out"), force=args.force)
         plan = recording.plan if recording else Plan.from_scene(scene)
         if not args.side_by_side:
             check_one_world([plan, *(run.recording.plan for run in lead.others)], [lead.where, *lead.folders])

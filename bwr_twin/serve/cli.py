@@ -25,6 +25,7 @@ from pathlib import Path
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import exit_status
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME, ServeError
+from bwr_twin.sim.budget import FORCE_HELP
 
 DEFAULT_ENDPOINT = "opc.tcp://127.0.0.1:4840"
 DEFAULT_PORT = 4840  # OPC UA's registered port, when the URL gives none
@@ -63,6 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures of --out")
     parser.add_argument("--model", help="machine MJCF replacing the scene's")
     parser.add_argument("--seed", type=int, help="disturbance seed replacing the scene's")
+    parser.add_argument("--force", action="store_true", help=FORCE_HELP)
     args = parser.parse_args(argv)
     return exit_status(lambda: _serve(args), interrupted="interrupted: server stopped")
 
@@ -87,6 +89,7 @@ def _serve(args: argparse.Namespace) -> int:
     from bwr_twin.serve.security import check_options, load_users
     from bwr_twin.serve.server import APPLICATION_URI, Options, export_nodeset, serve
     from bwr_twin.serve.user_certificates import load_user_certificates
+    from bwr_twin.sim.budget import check_scenes
 
     options = Options(url=url, host=host, port=port, mode=REALTIME if args.realtime else LOCKSTEP,
                       speed=args.speed, watchdog_periods=args.watchdog_periods, users=args.users,
@@ -97,6 +100,7 @@ def _serve(args: argparse.Namespace) -> int:
             raise ServeError(f"--nodeset {args.nodeset} writes the address space and serves nothing: --out does "
                              "not apply")
         scene = load_scene(scene_path, scene_overrides(args.model, args.seed))
+        check_scenes([scene], where=scene.path, out_dir=args.nodeset.parent, force=args.force)
         check_output(args.nodeset, "nodeset", overwrite=args.overwrite, inputs=scene.input_files, option="--nodeset")
         return asyncio.run(export_nodeset(scene, options, args.nodeset))
     check_options(url=url, loopback=is_loopback(host), users_file=args.users, certificate=args.certificate,
@@ -109,6 +113,7 @@ def _serve(args: argparse.Namespace) -> int:
     if args.user_certificates is not None:
         load_user_certificates(args.user_certificates)
     scene = load_scene(scene_path, scene_overrides(args.model, args.seed))
+    check_scenes([scene], where=scene.path, out_dir=args.out or Path.cwd(), force=args.force)  # the run it serves
     return asyncio.run(serve(scene, options))
 
 

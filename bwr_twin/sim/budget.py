@@ -1,6 +1,13 @@
 """What a run or a batch will cost, estimated from its scenes before anything starts, and the
 bounds beyond which the twin refuses to start without `--force`.
 
+Every command that simulates a scene (run, batch, compare, tune, replay, serve, export fmu, a
+Gymnasium environment) calls `estimate` and `check_estimate`, or `check_scenes`, which does
+both. The estimate counts what a scene's plan and faults will make before anything is planned
+(bwr_twin.sim.scaling: refused beyond their counts), then adds up the physics steps, the control
+periods, the pile, the stacking's grid, the rings a run holds and the records; a refusal names the
+key that weighs most in the bound it breaks.
+
 The costs per physics step, per control period and per run directory were measured on the
 2-core reference machine (docs/performance.md); the estimate is meant to tell minutes from days
 and megabytes from terabytes, not to be exact.
@@ -22,6 +29,7 @@ from bwr_twin.pile.surface import cell_count
 from bwr_twin.planning.stacking import pile_grid
 from bwr_twin.sensing.outputs import HIT_BYTES, SCAN_BYTES, SURVEY_CELL_BYTES
 from bwr_twin.sensing.scanning import planned_scanners
+from bwr_twin.sim.scaling import LAYER_BYTES, Part, bytes_text, check_counts, duration_text, parts
 from bwr_twin.signals import csv_columns, recorded_values
 from bwr_twin.units import SECONDS_PER_HOUR
 
@@ -43,12 +51,6 @@ PILE_FILE_CELL_BYTES = 8  # pile.npz per cell: z_start and z_end, compressed
 SCAN_RAY_S = 0.3e-6
 SCAN_S = 15e-6
 
-# A stacked pile (docs/blending.md): a layer's thickness and grade, float64, in memory and in
-# pile.npz (uncompressed, at most); s of CPU per deposit, the relaxation and the layers' replay
-# (tools/relaxation_speed.py: about 1 ms on 47,500 cells).
-LAYER_BYTES = 16
-DEPOSIT_S = 1.5e-3
-
 # Bounds a command refuses to go beyond without --force.
 MAX_HOURS = 12.0  # of CPU on the workers: an overnight run, not a week
 MAX_MEMORY_SHARE = 0.5  # of this machine's RAM, all workers' locksteps together
@@ -67,17 +69,23 @@ class Estimate:
     seconds: float  # wall time on the workers
     memory_bytes: float  # peak, all workers' locksteps together
     disk_bytes: float  # the run directories
+    slowest: Part | None = None  # of what scales, by the key it scales with: the most CPU a run
+    largest: Part | None = None  # ... and the most memory a run
 
     def describe(self) -> str:
         return (f"{self.runs} run{'s' if self.runs != 1 else ''}, {self.physics_steps:.3g} physics steps, "
-                f"about {_duration(self.seconds)}, {_bytes(self.memory_bytes)} of memory and "
-                f"{_bytes(self.disk_bytes)} of results")
+                f"about {duration_text(self.seconds)}, {bytes_text(self.memory_bytes)} of memory and "
+                f"{bytes_text(self.disk_bytes)} of results")
 
 
-def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots: bool = False) -> Estimate:
-    """The cost of simulating `scenes` in locksteps of `chunk` runs on `workers` processes."""
+def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots: bool = False,
+             force: bool = False) -> Estimate:
+    """The cost of simulating `scenes` in locksteps of `chunk` runs on `workers` processes.
+    Refuses (BwrError) a plan or faults beyond their counts before planning, unless `force`."""
+    check_counts(scenes, force=force)
     steps = periods = cpu = pile_cells_written = disk = 0.0
     peak_lockstep = 0.0
+    slowest = largest = None
     for scene in scenes:
         sim = scene.simulation
         duration = _duration_of(scene)
@@ -85,11 +93,11 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         run_steps = duration / sim.timestep
         run_rows = duration / sim.record_period + 1
         cells = cell_count(scene.stockpile, scene.path) if scene.stockpile is not None else 0
-        layer_bytes = deposit_cpu = 0.0
-        if scene.stacking is not None:  # a pile of layers, laid and slumped every deposit period
+        layer_bytes = 0.0
+        if scene.stacking is not None:  # a pile of layers in pile.npz
             x, y = pile_grid(scene.stacking)
             layer_bytes = len(x) * len(y) * scene.stacking.max_layers * LAYER_BYTES
-            deposit_cpu = duration / scene.stacking.deposit_period * DEPOSIT_S
+        scaled = parts(scene, duration)  # the plan, faults, rings and the stacking's grid
         scan_bytes, scan_cpu = _scans(scene, duration, cells)
         disk += scan_bytes
         cpu += scan_cpu
@@ -97,22 +105,32 @@ def estimate(scenes: Sequence[Scene], *, workers: int = 1, chunk: int = 1, plots
         declared = tuple(getattr(controller_class(scene.controller.type), "signals", ()))
         groups = {"reclaim": scene.stockpile is not None, "neighbour": scene.neighbour is not None}
         row_values = recorded_values(declared, **groups)
+        scaled += [Part("simulation.timestep", f"physics steps ({duration:.3g} s of run at {sim.timestep:g} s)",
+                        run_steps, run_steps * STEP_S, 0.0),
+                   Part(_duration_key(scene), f"s of run ({run_periods:.3g} control periods sampled and "
+                        f"{run_rows:.3g} rows recorded)", duration,
+                        run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk),
+                        run_periods * SAMPLE_BYTES + run_rows * row_values * 8)]
+        for part in scaled:
+            slowest = part if part.seconds > (slowest.seconds if slowest else 0.0) else slowest
+            largest = part if part.bytes > (largest.bytes if largest else 0.0) else largest
         disk += run_rows * csv_columns(declared, **groups) * CSV_VALUE_BYTES
         steps += run_steps
         periods += run_periods
         pile_cells_written += cells
         cpu += run_steps * STEP_S + run_periods * (PERIOD_PER_RUN_S + PERIOD_PER_LOCKSTEP_S / chunk)
         cpu += run_periods * PILE_PERIOD_S if cells else 0.0
-        cpu += deposit_cpu
+        cpu += sum(part.seconds for part in scaled[:-2])
         disk += layer_bytes
         cpu += FILES_S + (PLOTS_S if plots else 0.0)
+        held = sum(part.bytes for part in scaled[:-2])  # the plan's, the rings', the stacking grid's
         peak_lockstep = max(peak_lockstep, run_periods * SAMPLE_BYTES
-                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES + scan_bytes + layer_bytes))
+                            + chunk * (run_rows * row_values * 8 + cells * PILE_CELL_BYTES + scan_bytes + held))
     runs = len(scenes)
     parallel = max(1, min(workers, math.ceil(runs / chunk)))
     disk += runs * (RUN_FILES_BYTES + (PLOTS_BYTES if plots else 0))
     disk += pile_cells_written * PILE_FILE_CELL_BYTES
-    return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk)
+    return Estimate(runs, steps, cpu / parallel, parallel * peak_lockstep, disk, slowest, largest)
 
 
 def _scans(scene: Scene, duration: float, cells: int) -> tuple[float, float]:
@@ -146,18 +164,44 @@ def check_estimate(cost: Estimate, *, where: Path | str, out_dir: Path, force: b
     unless `force`."""
     if force:
         return
-    limits = []
+    limits, weighs = [], []
     if cost.seconds > MAX_HOURS * 3600:
         limits.append(f"more than {MAX_HOURS:g} h")
+        weighs.append(cost.slowest)
     memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     if cost.memory_bytes > MAX_MEMORY_SHARE * memory:
-        limits.append(f"more than {MAX_MEMORY_SHARE:.0%} of the {_bytes(memory)} of memory")
+        limits.append(f"more than {MAX_MEMORY_SHARE:.0%} of the {bytes_text(memory)} of memory")
+        weighs.append(cost.largest)
     free = shutil.disk_usage(_existing(out_dir)).free
     if cost.disk_bytes > MAX_DISK_SHARE * free:
-        limits.append(f"more than the {_bytes(free)} free on disk")
+        limits.append(f"more than the {bytes_text(free)} free on disk")
     if limits:
-        raise BwrError(f"{where}: would take {' and '.join(limits)}: {cost.describe()}; "
+        most = "".join(f"; most of it {_weight(part)}" for part in dict.fromkeys(weighs) if part is not None)
+        raise BwrError(f"{where}: would take {' and '.join(limits)}: {cost.describe()}{most}; "
                        "check the timestep, the via point times and the sweep, or pass --force")
+
+
+def check_scenes(scenes: Sequence[Scene], *, where: Path | str, out_dir: Path, force: bool, workers: int = 1,
+                 chunk: int = 1, plots: bool = False) -> Estimate:
+    """The one estimate of every command: `estimate` (its counts first), then `check_estimate`."""
+    cost = estimate(scenes, workers=workers, chunk=chunk, plots=plots, force=force)
+    check_estimate(cost, where=where, out_dir=out_dir, force=force)
+    return cost
+
+
+def _duration_key(scene: Scene) -> str:
+    """The key a run's duration comes from."""
+    if scene.reclaim is not None:
+        return "reclaim.stop"
+    if scene.stacking is not None:
+        return "stacking.tonnes"
+    return "path.via_points"
+
+
+def _weight(part: Part) -> str:
+    cost = [f"{duration_text(part.seconds)} a run"] if part.seconds else []
+    cost += [f"{bytes_text(part.bytes)} of memory a run"] if part.bytes else []
+    return f"{part.describe()}, {' and '.join(cost)}"
 
 
 def _existing(path: Path) -> Path:
@@ -165,21 +209,3 @@ def _existing(path: Path) -> Path:
     while not path.exists():
         path = path.parent
     return path
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 2 * 3600:
-        return f"{seconds / 60:.0f} min"
-    if seconds < 2 * 86400:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.3g} days"
-
-
-def _bytes(count: float) -> str:
-    for unit in ("B", "kB", "MB", "GB", "TB"):
-        if count < 1000 or unit == "TB":
-            return f"{count:.3g} {unit}" if unit != "B" else f"{count:.0f} B"
-        count /= 1000
-    raise AssertionError("unreachable")

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         tuning = load_tuning(find_scene(args.tuning))
         check_output(args.out, "tuning", inputs={tuning.path, *tuning.base.input_files})
         workers = 1 if args.scheduler else args.workers or os.cpu_count() or 1
-        check_estimate(budget_estimate(tuning, workers), where=f"{tuning.path}: 'budget.evaluations' ({tuning.evaluations}) x "
+        check_estimate(budget_estimate(tuning, workers, force=args.force), where=f"{tuning.path}: 'budget.evaluations' ({tuning.evaluations}) x "
                        f"{len(tuning.training_seeds)} training seeds",
                        out_dir=args.out, force=args.force)
         found = marker(args.out) if args.out.exists() else None
