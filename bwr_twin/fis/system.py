@@ -27,6 +27,7 @@ AND, OR = 1, 2  # a rule's connection, as the .fis file writes it
 # output would read as "no rule fired". Within ±1e100 the width, up to 1,000,000 samples of it and
 # their sums stay finite, far beyond any physical universe.
 MAX_MAGNITUDE = 1e100
+_WIDTHS = {"gaussmf": (0,), "gauss2mf": (0, 2), "gbellmf": (0,)}  # the parameters squared or divided by
 
 # (attribute, .fis key, allowed values)
 METHODS = (
@@ -176,6 +177,10 @@ def _check_variable(system: FuzzySystem, kind: str, i: int, variable: Variable) 
         problem = param_problem(mf.type, mf.params)
         if not problem and any(abs(float(v)) > MAX_MAGNITUDE for v in mf.params):
             problem = f"parameters beyond ±{MAX_MAGNITUDE:g}, got {shown_items(mf.params, '{:g}'.format)}"
+        widths = [float(mf.params[i]) for i in _WIDTHS.get(mf.type, ())]
+        if not problem and any(0 < abs(w) < 1 / MAX_MAGNITUDE for w in widths):
+            problem = (f"{mf.type} width {min(widths, key=abs):g} is narrower than {1 / MAX_MAGNITUDE:g} (its square "
+                       "would be 0)")
         if problem:
             raise system.fail(where, f"MF{k} {mf.name!r} of {label} {variable.name!r}: {problem}")
 
