@@ -8,13 +8,26 @@ answers bad input with one line `error: <what>: <what is wrong>` and exit status
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from typing import NoReturn
 
 
+# What argparse takes for a value rather than an option: a negative number as float() reads it,
+# -inf and -nan included (so that the command, not the parser, says they are not finite).
+NEGATIVE_NUMBER = re.compile(r"^-(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|inf|infinity|nan)$", re.IGNORECASE)
+
+
 class CommandParser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line on stderr, pointing at --help, and status 2.
-    Subcommands' parsers are of the same class (argparse makes them with type(self))."""
+    Subcommands' parsers are of the same class (argparse makes them with type(self)).
+
+    A negative number in any notation float() reads (-1e-3, -.5, -2., -inf) is a value, not an option:
+    argparse alone takes only -1 and -0.5 for numbers."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str) -> NoReturn:
         text = " ".join(message.split())  # argparse wraps some messages over lines

@@ -36,6 +36,24 @@ class PluginError(BwrError):
     """An engineer's controller or rate control raised, or returned what it may not."""
 
 
+SHOWN_ITEMS = 4  # items of a list a message shows, before the count of them all
+SHOWN_CHARACTERS = 80  # characters of a value a message shows
+
+
+def shown_items(items, form=repr) -> str:
+    """A list for a message, short however long it is: '(0.0, 1.0, 0.0, 0.0, ... 2,500,000 in all)'."""
+    items = list(items)
+    head = ", ".join(form(item) for item in items[:SHOWN_ITEMS])
+    return f"({head}, ... {len(items):,} in all)" if len(items) > SHOWN_ITEMS else f"({head})"
+
+
+def shown_text(text: str) -> str:
+    """A value as a message quotes it: repr, cut to SHOWN_CHARACTERS with the length it has."""
+    if len(text) <= SHOWN_CHARACTERS:
+        return repr(text)
+    return f"{text[:SHOWN_CHARACTERS]!r}... ({len(text):,} characters)"
+
+
 def exit_status(command: Callable[[], int], *, interrupted: str = "interrupted: nothing written") -> int:
     """Run a command line's work and return its exit status: a BwrError is one line on stderr
     and status 2, Ctrl-C the `interrupted` note and 130."""

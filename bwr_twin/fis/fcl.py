@@ -32,7 +32,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from bwr_twin.errors import SceneError
+from bwr_twin.errors import SceneError, shown_items
 from bwr_twin.fis.system import AND, OR, FuzzySystem, MembershipFunction, Rule, Variable, check
 from bwr_twin.fis.writer import format_number
 from bwr_twin.textfile import read_text
@@ -204,6 +204,7 @@ def parse_fcl(text: str, path: Path) -> FuzzySystem:
     tokens.take("FUNCTION_BLOCK")
     name = tokens.take(kind="word")
     declared: dict[str, list[str]] = {"VAR_INPUT": [], "VAR_OUTPUT": []}
+    first_lines: dict[str, int] = {}  # where each variable was declared
     sets: dict[str, tuple[tuple[float, float] | None, list[MembershipFunction], int]] = {}
     methods = {"and_method": "min", "or_method": "max", "imp_method": "min", "agg_method": "max",
                "defuzz_method": "centroid"}
@@ -212,7 +213,13 @@ def parse_fcl(text: str, path: Path) -> FuzzySystem:
         section = tokens.take(kind="word").upper()
         if section in declared:
             while tokens.peek() != "END_VAR":
-                declared[section].append(tokens.take(kind="word"))
+                line = tokens.line()
+                variable = tokens.take(kind="word")
+                if variable in first_lines:
+                    raise tokens.fail(f"variable {variable!r} is declared twice (first on line "
+                                      f"{first_lines[variable]}); each input and output is declared once")
+                first_lines[variable] = line
+                declared[section].append(variable)
                 tokens.take(":")
                 tokens.take(kind="word")
                 tokens.take(";")
@@ -220,14 +227,22 @@ def parse_fcl(text: str, path: Path) -> FuzzySystem:
         elif section in ("FUZZIFY", "DEFUZZIFY"):
             line = tokens.line()
             variable = tokens.take(kind="word")
+            if variable in sets:
+                raise tokens.fail(f"{section} {variable} appears twice (first on line {sets[variable][2]})")
             sets[variable] = _read_sets(tokens, section, methods) + (line,)
         elif section == "RULEBLOCK":
             tokens.take(kind="word")
             lines["rules"] = tokens.line()
+            count = len(rule_texts)
             _read_rules(tokens, methods, rule_texts)
+            if len(rule_texts) == count:
+                raise SceneError(f"{path}:{lines['rules']}: the RULEBLOCK holds no RULE (at least one: "
+                                 "RULE 1 : IF e IS zero THEN u IS zero;)")
         else:
             raise tokens.fail(f"unknown section {section!r} (FCL has VAR_INPUT, VAR_OUTPUT, FUZZIFY, DEFUZZIFY, "
                               "RULEBLOCK)")
+    if not rule_texts:
+        raise SceneError(f"{path}:{lines['system']}: the FUNCTION_BLOCK has no RULEBLOCK (at least one rule)")
     variables = {}
     for kind, title in (("input", "VAR_INPUT"), ("output", "VAR_OUTPUT")):
         for i, variable in enumerate(declared[title], start=1):
@@ -262,11 +277,17 @@ def parse_fcl(text: str, path: Path) -> FuzzySystem:
 
 def _read_sets(tokens: _Tokens, section: str, methods: dict) -> tuple:
     var_range, mfs = None, []
+    terms: dict[str, int] = {}  # each set's line
     end = f"END_{section}"
     while tokens.peek() != end:
         key = tokens.take(kind="word").upper()
         if key == "TERM":
+            line = tokens.line()
             name = tokens.take(kind="word")
+            if name in terms:
+                raise tokens.fail(f"TERM {name} appears twice in this {section} (first on line {terms[name]}); "
+                                  "a rule could not tell them apart")
+            terms[name] = line
             tokens.take(":=")
             if tokens.peek() != "(":
                 raise tokens.fail(f"set {name!r} is a singleton or a variable: a .fis set is a triangle or a "
@@ -281,8 +302,9 @@ def _read_sets(tokens: _Tokens, section: str, methods: dict) -> tuple:
             degrees = tuple(d for _, d in points)
             kind = next((k for k, d in _POLYLINE_DEGREES.items() if d == degrees), None)
             if kind is None:
-                raise tokens.fail(f"set {name!r} has points of degrees {degrees}: the .fis sets are a triangle "
-                                  "(0, 1, 0) or a trapezoid (0, 1, 1, 0); singletons and other polylines have none")
+                raise tokens.fail(f"set {name!r} has points of degrees {shown_items(degrees)}: the .fis sets are "
+                                  "a triangle (0, 1, 0) or a trapezoid (0, 1, 1, 0); singletons and other "
+                                  "polylines have none")
             mfs.append(MembershipFunction(name, kind, tuple(x for x, _ in points)))
         elif key == "RANGE":
             tokens.take(":=")

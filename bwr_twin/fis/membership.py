@@ -39,6 +39,14 @@ def _split(x: object, params: Sequence[float], n: int) -> tuple[np.ndarray, tupl
     return np.asarray(x, dtype=float), values
 
 
+# Far from a narrow Gaussian's or bell's centre its exponent overflows to infinity (a zero base
+# to a negative power is infinite too), and the membership is its limit, 0, as it should be: no
+# warning. The check of a system (bwr_twin.fis.system) keeps widths and values where nothing else
+# overflows, and no 0/0 is left: a width is at least 1e-100, its square no 0.
+def _far() -> np.errstate:
+    return np.errstate(over="ignore", divide="ignore", under="ignore")
+
+
 def trimf(x: object, params: Sequence[float]) -> np.ndarray:
     """Triangle [a b c]: 0 outside (a, c), rising on (a, b), 1 at b, falling on (b, c)."""
     x, (a, b, c) = _split(x, params, 3)
@@ -76,7 +84,8 @@ def trapmf(x: object, params: Sequence[float]) -> np.ndarray:
 def gaussmf(x: object, params: Sequence[float]) -> np.ndarray:
     """Gaussian [sigma c]: exp(-(x - c)^2 / (2 sigma^2)); note MATLAB's order, width first."""
     x, (sigma, c) = _split(x, params, 2)
-    return np.exp(-((x - c) ** 2) / (2.0 * sigma**2))
+    with _far():
+        return np.exp(-((x - c) ** 2) / (2.0 * sigma**2))
 
 
 def gauss2mf(x: object, params: Sequence[float]) -> np.ndarray:
@@ -86,15 +95,17 @@ def gauss2mf(x: object, params: Sequence[float]) -> np.ndarray:
     so the top stays below 1.
     """
     x, (s1, c1, s2, c2) = _split(x, params, 4)
-    left = np.where(x <= c1, np.exp(-((x - c1) ** 2) / (2.0 * s1**2)), 1.0)
-    right = np.where(x >= c2, np.exp(-((x - c2) ** 2) / (2.0 * s2**2)), 1.0)
+    with _far():
+        left = np.where(x <= c1, np.exp(-((x - c1) ** 2) / (2.0 * s1**2)), 1.0)
+        right = np.where(x >= c2, np.exp(-((x - c2) ** 2) / (2.0 * s2**2)), 1.0)
     return left * right
 
 
 def gbellmf(x: object, params: Sequence[float]) -> np.ndarray:
     """Generalised bell [a b c]: 1 / (1 + |(x - c) / a|^(2b)); a the half width, c the centre."""
     x, (a, b, c) = _split(x, params, 3)
-    return 1.0 / (1.0 + np.abs((x - c) / a) ** (2.0 * b))
+    with _far():
+        return 1.0 / (1.0 + np.abs((x - c) / a) ** (2.0 * b))
 
 
 def sigmf(x: object, params: Sequence[float]) -> np.ndarray:

@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bwr_twin.errors import SceneError
+from bwr_twin.errors import SceneError, shown_text
 from bwr_twin.fis.system import METHODS, FuzzySystem, MembershipFunction, Rule, Variable, check
 from bwr_twin.textfile import decode
 
@@ -119,9 +119,11 @@ def parse_fis(text: str, path: str | Path = "<string>") -> FuzzySystem:
     rules_section = sections.get("rules")
     if rules_section is None:
         raise fail(
-            system.line, "missing section [Rules] (one line a rule, e.g. '1 1, 1 (1) : 1'; may be empty)"
+            system.line, "missing section [Rules] (one line a rule, e.g. '1 1, 1 (1) : 1')"
         )
     lines["rules"] = rules_section.line
+    if not rules_section.rules:
+        raise fail(rules_section.line, "[Rules] holds no rule (at least one, one line a rule, e.g. '1 1, 1 (1) : 1')")
     rules = []
     for r, (text_line, line) in enumerate(rules_section.rules, start=1):
         rules.append(_rule(text_line, line, r, path))
@@ -167,13 +169,13 @@ def _split_sections(text: str, path: Path) -> dict[str, _Section]:
             continue
         if current is None:
             raise SceneError(
-                f"{path}:{number}: text before the first section: {line!r} ([System] comes first)"
+                f"{path}:{number}: text before the first section: {shown_text(line)} ([System] comes first)"
             )
         if current.key == "rules":
             current.rules.append((line, number))
             continue
         if "=" not in line:
-            raise SceneError(f"{path}:{number}: expected Key=Value in {current.title}, got {line!r}")
+            raise SceneError(f"{path}:{number}: expected Key=Value in {current.title}, got {shown_text(line)}")
         key, value = (part.strip() for part in line.split("=", 1))
         if key.lower() in current.entries:
             first = current.entries[key.lower()][2]
@@ -193,7 +195,7 @@ def _header(line: str, number: int, path: Path) -> _Section:
     if kind in ("input", "output") and index and int(index) >= 1:
         return _Section(f"{kind}{int(index)}", f"[{kind.capitalize()}{int(index)}]", number)
     raise SceneError(
-        f"{path}:{number}: unknown section {line!r} (known: [System], [Input1].., [Output1].., [Rules])"
+        f"{path}:{number}: unknown section {shown_text(line)} (known: [System], [Input1].., [Output1].., [Rules])"
     )
 
 
@@ -210,7 +212,7 @@ def _string(section: _Section, key: str, path: Path, required: bool) -> str | No
     match = _STRING_RE.fullmatch(entry[1])
     if match is None:
         raise SceneError(
-            f"{path}:{entry[2]}: {key} must be a quoted string like '{key.lower()}', got {entry[1]!r}"
+            f"{path}:{entry[2]}: {key} must be a quoted string like '{key.lower()}', got {shown_text(entry[1])}"
         )
     return match[1]
 
@@ -220,7 +222,7 @@ def _count(section: _Section, key: str, path: Path) -> int | None:
     if entry is None:
         return None
     if not _INT_RE.fullmatch(entry[1]) or int(entry[1]) < 0:
-        raise SceneError(f"{path}:{entry[2]}: {key} must be a whole number >= 0, got {entry[1]!r}")
+        raise SceneError(f"{path}:{entry[2]}: {key} must be a whole number >= 0, got {shown_text(entry[1])}")
     return int(entry[1])
 
 
@@ -228,7 +230,7 @@ def _numbers(text: str, line: int, path: Path, what: str) -> tuple[float, ...]:
     items = [item for item in re.split(r"[\s,;]+", text.strip()) if item]
     for item in items:
         if not _NUMBER_RE.fullmatch(item):
-            raise SceneError(f"{path}:{line}: {what}: {item!r} is not a number")
+            raise SceneError(f"{path}:{line}: {what}: {shown_text(item)} is not a number")
     return tuple(float(item) for item in items)
 
 
@@ -241,7 +243,7 @@ def _variable(section: _Section, path: Path, lines: dict[str, int]) -> Variable:
             mf_entries[int(match[1])] = (value, line)
         elif lower not in ("name", "range", "nummfs"):
             raise SceneError(
-                f"{path}:{line}: unknown key {key!r} in {section.title} (known: {', '.join(_VARIABLE_KEYS)})"
+                f"{path}:{line}: unknown key {shown_text(key)} in {section.title} (known: {', '.join(_VARIABLE_KEYS)})"
             )
     name = _string(section, "Name", path, required=True)
     range_entry = section.entries.get("range")
@@ -250,11 +252,11 @@ def _variable(section: _Section, path: Path, lines: dict[str, int]) -> Variable:
     value, line = range_entry[1], range_entry[2]
     lines[f"{section.key}.range"] = line
     if not (value.startswith("[") and value.endswith("]")):
-        raise SceneError(f"{path}:{line}: Range must be [low high], two numbers, got {value!r}")
+        raise SceneError(f"{path}:{line}: Range must be [low high], two numbers, got {shown_text(value)}")
     bounds = _numbers(value[1:-1], line, path, "Range must be [low high], two numbers")
     if len(bounds) != 2:
         raise SceneError(
-            f"{path}:{line}: Range must be [low high], two numbers, got {len(bounds)}: {value!r}"
+            f"{path}:{line}: Range must be [low high], two numbers, got {len(bounds)}: {shown_text(value)}"
         )
 
     n = max(mf_entries, default=0)
@@ -273,7 +275,7 @@ def _variable(section: _Section, path: Path, lines: dict[str, int]) -> Variable:
         lines[f"{section.key}.mf{k}"] = line
         match = _MF_RE.fullmatch(value)
         if match is None:
-            raise SceneError(f"{path}:{line}: MF{k} must look like 'name':'trimf',[a b c], got {value!r}")
+            raise SceneError(f"{path}:{line}: MF{k} must look like 'name':'trimf',[a b c], got {shown_text(value)}")
         params = _numbers(match[3], line, path, f"MF{k} {match[1]!r} parameters")
         mfs.append(MembershipFunction(name=match[1], type=match[2].strip(), params=params))
     return Variable(name=name, range=(bounds[0], bounds[1]), mfs=tuple(mfs))
@@ -285,7 +287,7 @@ def _rule(text: str, line: int, r: int, path: Path) -> Rule:
         raise SceneError(
             f"{path}:{line}: rule {r} must look like '1 2, 1 (1) : 1' "
             "(inputs, outputs (weight) : 1 AND / 2 OR), "
-            f"got {text!r}"
+            f"got {shown_text(text)}"
         )
     columns = []
     for part, what in ((match[1], "antecedent"), (match[2], "consequent")):
@@ -293,16 +295,16 @@ def _rule(text: str, line: int, r: int, path: Path) -> Rule:
         for item in items:
             if not _INT_RE.fullmatch(item):
                 raise SceneError(
-                    f"{path}:{line}: rule {r}: {what} index {item!r} is not a whole number "
+                    f"{path}:{line}: rule {r}: {what} index {shown_text(item)} is not a whole number "
                     "(1-based set index, 0 don't care, negative NOT)"
                 )
         columns.append(tuple(int(item) for item in items))
     weight_text = match[3].strip()
     if not _NUMBER_RE.fullmatch(weight_text):
-        raise SceneError(f"{path}:{line}: rule {r}: weight {weight_text!r} is not a number (in [0, 1])")
+        raise SceneError(f"{path}:{line}: rule {r}: weight {shown_text(weight_text)} is not a number (in [0, 1])")
     connection = match[4]
     if connection not in ("1", "2"):
-        raise SceneError(f"{path}:{line}: rule {r}: connection {connection!r} must be 1 (AND) or 2 (OR)")
+        raise SceneError(f"{path}:{line}: rule {r}: connection {shown_text(connection)} must be 1 (AND) or 2 (OR)")
     return Rule(
         antecedent=columns[0], consequent=columns[1], weight=float(weight_text), connection=int(connection)
     )

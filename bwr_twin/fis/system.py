@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bwr_twin.errors import SceneError
+from bwr_twin.errors import SceneError, shown_items
 from bwr_twin.fis.membership import param_problem
 
 AND_METHODS = ("min", "prod")
@@ -22,6 +22,12 @@ IMP_METHODS = ("min", "prod")
 AGG_METHODS = ("max", "sum", "probor")
 DEFUZZ_METHODS = ("centroid", "bisector", "mom", "som", "lom")
 AND, OR = 1, 2  # a rule's connection, as the .fis file writes it
+# The largest magnitude of a range's end or a set's parameter. An output range is sampled and its
+# centroid is a sum of samples times memberships: of ±1.7e308 the width alone overflows, and every
+# output would read as "no rule fired". Within ±1e100 the width, up to 1,000,000 samples of it and
+# their sums stay finite, far beyond any physical universe.
+MAX_MAGNITUDE = 1e100
+_WIDTHS = {"gaussmf": (0,), "gauss2mf": (0, 2), "gbellmf": (0,)}  # the parameters squared or divided by
 
 # (attribute, .fis key, allowed values)
 METHODS = (
@@ -108,8 +114,9 @@ def check(system: FuzzySystem) -> FuzzySystem:
     """The system itself if the inference and the .fis writer can honour it; else a SceneError.
 
     Checks the methods, that there is at least one input and one output, the names (non-empty,
-    no quote or line break: the .fis format has no escapes), the ranges (finite, low < high), every
-    membership function (type, parameter count and conditions) and every rule (column counts,
+    no quote or line break: the .fis format has no escapes; a variable's sets distinct), the ranges
+    (finite, low < high, within ±MAX_MAGNITUDE), every membership function (type, parameter count
+    and conditions, within ±MAX_MAGNITUDE) and every rule (column counts,
     indices within the sets, weight in [0, 1], connection 1 or 2).
     """
     for attribute, key, allowed in METHODS:
@@ -149,12 +156,31 @@ def _check_variable(system: FuzzySystem, kind: str, i: int, variable: Variable) 
             f"{label} {variable.name!r}: Range must be [low high], finite, low < high, "
             f"got [{low:g} {high:g}]",
         )
+    if max(abs(low), abs(high)) > MAX_MAGNITUDE:
+        raise system.fail(
+            f"{place}.range",
+            f"{label} {variable.name!r}: Range [{low:g} {high:g}] is beyond ±{MAX_MAGNITUDE:g} (its samples "
+            "and their centroid would overflow)",
+        )
     if not variable.mfs:
         raise system.fail(place, f"{label} {variable.name!r} has no membership functions (needs MF1=...)")
+    names: dict[str, int] = {}
     for k, mf in enumerate(variable.mfs, start=1):
         where = f"{place}.mf{k}"
         _check_name(system, where, f"MF{k} of {label} {variable.name!r}", mf.name)
+        if mf.name in names:
+            raise system.fail(
+                where, f"MF{k} {mf.name!r} of {label} {variable.name!r}: the name of MF{names[mf.name]} too "
+                "(each set of a variable has its own name)"
+            )
+        names[mf.name] = k
         problem = param_problem(mf.type, mf.params)
+        if not problem and any(abs(float(v)) > MAX_MAGNITUDE for v in mf.params):
+            problem = f"parameters beyond ±{MAX_MAGNITUDE:g}, got {shown_items(mf.params, '{:g}'.format)}"
+        widths = [float(mf.params[i]) for i in _WIDTHS.get(mf.type, ())]
+        if not problem and any(0 < abs(w) < 1 / MAX_MAGNITUDE for w in widths):
+            problem = (f"{mf.type} width {min(widths, key=abs):g} is narrower than {1 / MAX_MAGNITUDE:g} (its square "
+                       "would be 0)")
         if problem:
             raise system.fail(where, f"MF{k} {mf.name!r} of {label} {variable.name!r}: {problem}")
 

@@ -11,6 +11,7 @@ density) are not edits: they are per-simulation fields of the plant's batch (`bw
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,7 +119,7 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
     if not path.is_file():
         raise ModelError(f"{path}: MJCF file not found")
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        spec = _parse(path)
         for i, payload in enumerate(edits.payloads):
             body = spec.body(payload.body)
             if body is None:
@@ -150,11 +151,31 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
 
 
+_WARNED: set[tuple[str, str]] = set()  # (file, MuJoCo's warning) already printed by this process
+
+
+def _parse(path: Path) -> mujoco.MjSpec:
+    """The MJCF file at `path` parsed. What MuJoCo warns of while parsing (an XML holding a NaN)
+    is printed once a process as 'warning: FILE: MuJoCo: ...', not each time the file is parsed:
+    a run compiles its machine more than once (the plant, the controller's model, pictures)."""
+    texts: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(texts.append)
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    finally:
+        mujoco.set_mju_user_warning(previous)
+        for text in texts:
+            if (str(path), text) not in _WARNED:
+                _WARNED.add((str(path), text))
+                print(f"warning: {path}: MuJoCo: {' '.join(text.split())}", file=sys.stderr)
+
+
 def _attach(spec: mujoco.MjSpec, path: Path) -> None:
     """The machine of the MJCF at `path` on the world of `spec`, its names prefixed NEIGHBOUR."""
     if not path.is_file():
         raise ModelError(f"{path}: the neighbour's MJCF file not found")
-    other = mujoco.MjSpec.from_file(str(path))
+    other = _parse(path)
     bodies = other.worldbody.bodies
     if len(bodies) != 1:
         raise ModelError(f"{path}: a neighbour's world must hold one body, its machine; it holds {len(bodies)}")

@@ -81,6 +81,11 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
         moves.append(planner.quickest_move(q, waypoint, 0, "survey"))
         q = waypoint
     duration = sum(m.duration for m in moves)
+    if reclaim.stop.time is not None and reclaim.stop.time <= duration:
+        # The benches are planned for the time left after the survey: none would be left.
+        raise SceneError(f"{where}: 'stop.time' = {reclaim.stop.time:g} s ends within the survey, which takes "
+                         f"{duration:.1f} s through its {len(moves)} waypoints ([reclaim.survey]); a stop "
+                         "time counts from the run's start and must come after the survey's end")
     return BenchPlan(tuple(moves), planner.start, planner.law, planner.acceleration, planner.rated, None, (),
                      scene.stockpile.bulk_density, duration, duration + planner.period)
 

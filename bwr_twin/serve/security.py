@@ -34,6 +34,8 @@ SCHEME = "pbkdf2_sha256"
 MIN_ITERATIONS = 600_000
 MAX_ITERATIONS = 1_000_000
 ITERATIONS = MIN_ITERATIONS  # what passwd writes
+DIGEST_BYTES = 32  # PBKDF2-HMAC-SHA256's digest, as passwd writes it
+MIN_SALT_BYTES = 16  # passwd writes 16; NIST SP 800-132 asks for at least 16
 
 
 class SecurityError(BwrError):
@@ -62,6 +64,7 @@ def load_users(path: Path) -> dict[str, str]:
         reason = exc.strerror if isinstance(exc, OSError) else exc
         raise SecurityError(f"{path}: cannot read the users file ({reason})") from None
     users: dict[str, str] = {}
+    first_lines: dict[str, int] = {}
     for number, line in enumerate(lines, 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -79,7 +82,16 @@ def load_users(path: Path) -> dict[str, str]:
                                 f"takes {MIN_ITERATIONS:,} (OWASP's recommendation for PBKDF2-SHA256) to "
                                 f"{MAX_ITERATIONS:,} (a check under 1 s): make the line again with "
                                 "python -m bwr_twin.serve.passwd NAME")
+        salt, digest = (len(bytes.fromhex(part)) for part in fields[2:])
+        if digest != DIGEST_BYTES or salt < MIN_SALT_BYTES:
+            raise SecurityError(f"{path}:{number}: user {name!r}: a {salt}-byte salt and a {digest}-byte "
+                                f"digest; PBKDF2-SHA256 gives {DIGEST_BYTES} bytes, on a salt of at least "
+                                f"{MIN_SALT_BYTES}: make the line again with python -m bwr_twin.serve.passwd NAME")
+        if name in users:
+            raise SecurityError(f"{path}:{number}: user {name!r} is in the users file twice (first on line "
+                                f"{first_lines[name]}); keep one line a user")
         users[name] = stored
+        first_lines[name] = number
     if not users:
         raise SecurityError(f"{path}: no users in the users file")
     return users

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.errors import SceneError
+from bwr_twin.errors import SceneError, shown_text
 from bwr_twin.textfile import read_text
 from bwr_twin.values import reads_as_number
 
@@ -137,10 +137,10 @@ def _read_rows(file: Path) -> tuple[np.ndarray, np.ndarray]:
         cells = [cell.strip() for cell in line.split(",")]
         if len(cells) != 2:
             raise SceneError(f"{file}: line {number} must be two numbers t,grade (s, grade), "
-                             f"got {line.strip()!r}")
+                             f"got {shown_text(line.strip())}")
         for column, (name, cell) in enumerate(zip(("t", "grade"), cells), start=1):
             if not reads_as_number(cell) or not math.isfinite(float(cell)):
-                raise SceneError(f"{file}: line {number}, column {column} ({name}): {cell!r} "
+                raise SceneError(f"{file}: line {number}, column {column} ({name}): {shown_text(cell)} "
                                  "is not a finite number")
         if t and not float(cells[0]) > t[-1]:
             raise SceneError(f"{file}: line {number}, column 1 (t): {cells[0]} s does not follow "

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bwr_twin.config.scene import GradeSection, Scene
+from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
 from bwr_twin.pile.relaxation import Talus
 from bwr_twin.planning.patterns import equivalent_layers
@@ -99,6 +100,7 @@ class Stacking:
         self.every = round(section.deposit_period / period)  # control periods between deposits
         self.duration = duration
         self.streams = [grade_stream(section.grade, section.deposit_period, scene.simulation.seed) for scene in scenes]
+        _check_record(self.streams[0], scenes[0], round(duration / period), self.every, period)
         self.deposits: list[list[tuple[float, ...]]] = [[] for _ in scenes]  # (t, grade, tonnes, x, y, drop)
         self.unconverged = np.zeros(len(scenes), dtype=np.int64)  # relaxations that ran out of rounds
         self._frame_every = frame_every
@@ -179,6 +181,20 @@ class Stacking:
             "layers_per_column_max": int(pile.count.max()),
             "rate_tph": self.section.rate,
         }
+
+
+def _check_record(stream: Ar1Grade | RecordedGrade, scene: Scene, periods: int, every: int, period: float) -> None:
+    """A recorded grade must cover every deposit's time, from 0 s to the last deposit's start
+    (periods: control periods the runs discharge for); else a SceneError before anything runs."""
+    if not isinstance(stream, RecordedGrade) or periods < 1:
+        return
+    last = (periods - 1) // every * every * period  # the last deposit's start: its span is > 0
+    if stream.t[0] > 0.0 or stream.t[-1] < last:
+        raise SceneError(
+            f"{scene.path}: 'stacking.grade.file' {stream.file} records the grade from t = {stream.t[0]:g} s to "
+            f"{stream.t[-1]:g} s, {stream.t[-1] - stream.t[0]:g} s; the stacking lasts {periods * period:g} s, "
+            f"its deposits from 0 s to {last:g} s: the file must cover them"
+        )
 
 
 def grade_stream(section: GradeSection, period: float, seed: int) -> Ar1Grade | RecordedGrade:
