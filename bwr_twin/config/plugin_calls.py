@@ -31,35 +31,27 @@ def construct(label: str, cls: type, *args: Any) -> Any:
     """cls(*args); PluginError naming `label` if its __init__ raises, exits or overruns the budget.
     Starts the guard of the calls that follow (bwr_twin.config.plugin_guard)."""
     plugin_guard.start()
-    name = f"{cls.__name__}.__init__"
-    watch.call = current = (label, name, 0.0)
-    try:
-        return cls(*args)
-    except Overrun:
-        raise PluginError(_overrun(label, name, None)) from None
-    except Exited as exc:
-        raise PluginError(f"{label}: {name}() called os._exit({exc.code})") from None
-    except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
-        raise PluginError(f"{label}: {name}() raised {_raised(exc)}") from None
-    finally:
-        if watch.call is current:
-            watch.call = None
+    return call(label, cls, f"{cls.__name__}.__init__", None, *args)
 
 
-def call(label: str, method: Callable, name: str, time: float, *args: Any) -> Any:
-    """method(*args); PluginError naming `label`, the call and the simulated `time` (s) if it
-    raises, exits or runs beyond the budget of a call."""
+def call(label: str, method: Callable, name: str, time: float | None, *args: Any) -> Any:
+    """method(*args); PluginError naming `label`, the call and the simulated `time` (s; None:
+    before the run) if it raises, exits or runs beyond the budget of a call."""
     watch.call = (label, name, time)  # what the watchdog sees: all the guard costs a call
     try:
         return method(*args)
     except Overrun:
         raise PluginError(_overrun(label, name, time)) from None
     except Exited as exc:
-        raise PluginError(f"{label}: {name}() called os._exit({exc.code}) at t = {time:.2f} s") from None
+        raise PluginError(f"{label}: {name}() called os._exit({exc.code}){_at(time)}") from None
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - an engineer's code: say whose and where
-        raise PluginError(f"{label}: {name}() raised {_raised(exc)} at t = {time:.2f} s") from None
+        raise PluginError(f"{label}: {name}() raised {_raised(exc)}{_at(time)}") from None
     finally:
         watch.call = None
+
+
+def _at(time: float | None) -> str:
+    return "" if time is None else f" at t = {time:.2f} s"
 
 
 def reported(label: str, name: str, value: Any) -> Any:
@@ -74,8 +66,7 @@ def reported(label: str, name: str, value: Any) -> Any:
 
 
 def _overrun(label: str, name: str, time: float | None) -> str:
-    when = "" if time is None else f" at t = {time:.2f} s"
-    return (f"{label}: {name}() ran longer than its budget of {watch.budget:g} s a call{when} and was stopped; "
+    return (f"{label}: {name}() ran longer than its budget of {watch.budget:g} s a call{_at(time)} and was stopped; "
             f"set {BUDGET_VARIABLE} (s, 0 for none) to give it longer")
 
 
