@@ -17,6 +17,7 @@ bwr_twin.stockpile.stacked).
 from __future__ import annotations
 
 import functools
+import math
 from pathlib import Path
 
 from bwr_twin.errors import ModelError, SceneError
@@ -79,6 +80,24 @@ YARD_EXTENT_SOURCE = "metres from the yard's origin: a yard's rail runs at most 
 JOINT_ANGLE = 6.283185307179586
 JOINT_ANGLE_SOURCE = "radians: no slew or luff of a reclaimer turns more than a turn either way"
 
+# m/s, a rail-mounted yard machine's long travel where its MJCF gives no rated speed. Stackers and
+# reclaimers travel at some 30 m/min (0.5 m/s, both shipped machines' rating, mjcf/bwr_heavy.xml),
+# the fastest at about 60 m/min on a long-travel gear: 5 m/s is no yard machine's travel.
+RAIL_SPEED = 5.0
+RAIL_SPEED_SOURCE = "a yard machine's long travel runs at 0.5-1 m/s, 30-60 m/min"
+
+# deg/s, a slew or luff where the MJCF gives no rated speed: the shipped machines slew at 0.5-1.15
+# deg/s and luff at about 0.1 deg/s (mjcf/bwr.xml, mjcf/bwr_heavy.xml); a boom of 50 m turning at
+# 10 deg/s would sweep its wheel at 9 m/s, beyond any slew drive of a bucket wheel machine.
+ANGULAR_SPEED = 10.0
+
+# A grade is a content of the stream: a share, a percentage or parts per million of it. A grade
+# whose name says "%" (Fe %, ash %) lies in 0-100; any other in 0-1e6, the whole in ppm. Its sd
+# spans at most that range: a wider spread draws grades no material holds (and overflows the
+# metrics' squares, writing Infinity into metrics.json).
+GRADE_PERCENT = (0.0, 100.0)
+GRADE_ANY = (0.0, 1e6)
+
 _Facts = tuple[str, float, float, float, float]  # machine file name, weight N, reach m, boom m, wheel drive W
 
 
@@ -110,6 +129,12 @@ def check_bounds(scene) -> None:
     if scene.digging is not None:
         _within(p, "digging.lateral_ratio", scene.digging.lateral_ratio, LATERAL_RATIO, "",
                 "the side force of a cut is a share of its cutting force")
+    if scene.stacking is not None and scene.stacking.grade.mean is not None:
+        _check_grade(scene)
+    if scene.faults:
+        _check_faults_against_machine(scene)
+    if scene.neighbour is not None:
+        _check_neighbour_speed(scene)
     if plant.frictionloss is not None or (scene.digging is not None and scene.digging.idle_power > 0):
         _check_against_machine(scene)
 
@@ -159,3 +184,104 @@ def _machine_facts(mjcf: Path, stamp: tuple, payloads: tuple) -> _Facts | None:
     weight = float(machine.model.body_mass.sum()) * float(abs(machine.model.opt.gravity[2]))
     wheel_power = machine.wheel.power if machine.wheel is not None else float("inf")
     return mjcf.name, weight, float(g.pivot_reach + g.boom_length), float(g.boom_length), float(wheel_power)
+
+
+def _check_grade(scene) -> None:
+    """[stacking.grade]'s mean and sd within a content's range: a percentage if its name says %."""
+    g, p = scene.stacking.grade, scene.path
+    percent = "%" in g.name
+    bounds, unit = (GRADE_PERCENT, "%") if percent else (GRADE_ANY, "")
+    why = (f"the grade {g.name!r} is a percentage of the stream" if percent else
+           f"a grade ({g.name!r}) is a content: a share, a percentage or ppm of the stream")
+    _within(p, "stacking.grade.mean", g.mean, bounds, unit, why)
+    _within(p, "stacking.grade.sd", g.sd, (0.0, bounds[1] - bounds[0]), unit, f"{why}: its spread spans at most "
+            "the whole range")
+
+
+def _axis_facts_or_none(mjcf: Path):
+    try:
+        return _axis_facts(mjcf, version(mjcf))
+    except OSError:
+        return None
+
+
+def _check_faults_against_machine(scene) -> None:
+    """Faults on hardware the plant lacks, and drifts and noises beyond what its axes can do."""
+    facts = _axis_facts_or_none(scene.machine.mjcf)
+    if facts is None:
+        return  # a model that does not compile is named where it is used
+    name, rated, spans, scanners, belt_scale = facts
+    p = scene.path
+    for number, fault in enumerate(scene.faults):
+        where = f"faults[{number}]"
+        if fault.kind == "scanner_blinded" and not scanners:
+            raise SceneError(f"{p}: '{where}.kind' \"scanner_blinded\" blinds a scanner, but {name} has none "
+                             "(no site named 'scanner...', docs/sensing.md): the fault would never act")
+        if fault.kind == "belt_scale_frozen" and not belt_scale:
+            raise SceneError(f"{p}: '{where}.kind' \"belt_scale_frozen\" freezes a belt scale, but {name} has none "
+                             "(custom numeric 'belt_scale_distance', docs/sensing.md): the fault would never act")
+        if fault.axis is None or fault.axis not in _AXES:
+            continue
+        j = _AXES.index(fault.axis)
+        unit = "m" if j == 0 else "deg"
+        if fault.kind == "encoder_drift" and fault.rate is not None:
+            limit, why = rated[j], f"{name}'s rated {fault.axis} speed"
+            if not math.isfinite(limit):
+                limit, why = (RAIL_SPEED, RAIL_SPEED_SOURCE) if j == 0 else (
+                    ANGULAR_SPEED, "no reclaimer's boom slews or luffs at 10 deg/s")
+            if abs(fault.rate) > limit:
+                raise SceneError(f"{p}: '{where}.rate' {fault.rate:g} {unit}/s drifts faster than the {fault.axis} "
+                                 f"axis can move: at most {limit:.4g} {unit}/s ({why})")
+        if fault.kind == "encoder_noise" and fault.sigma is not None:
+            limit, why = spans[j], f"the span of {name}'s {fault.axis} envelope"
+            if not math.isfinite(limit):
+                limit, why = (2 * YARD_EXTENT, YARD_EXTENT_SOURCE) if j == 0 else (
+                    2 * math.degrees(JOINT_ANGLE), JOINT_ANGLE_SOURCE)
+            if fault.sigma > limit:
+                raise SceneError(f"{p}: '{where}.sigma' {fault.sigma:g} {unit} is noisier than the {fault.axis} "
+                                 f"axis is long: at most {limit:.4g} {unit} ({why})")
+
+
+def _check_neighbour_speed(scene) -> None:
+    """The neighbour's schedule no faster between its steps than its machine is rated to move."""
+    facts = _axis_facts_or_none(scene.neighbour.mjcf)
+    if facts is None:
+        return  # a model that does not compile is named where it is used
+    name, rated, _, _, _ = facts
+    steps = scene.neighbour.schedule
+    for i in range(1, len(steps)):
+        dt = steps[i].t - steps[i - 1].t
+        if not dt > 0:
+            return  # the order of the steps is refused with its own message
+        for j, axis in enumerate(_AXES):
+            speed = abs(steps[i].q[j] - steps[i - 1].q[j]) / dt
+            unit = "m/s" if j == 0 else "deg/s"
+            limit, why = rated[j], f"{name}'s rated {axis} speed"
+            if not math.isfinite(limit):
+                limit, why = (RAIL_SPEED, RAIL_SPEED_SOURCE) if j == 0 else (
+                    ANGULAR_SPEED, "no reclaimer's boom slews or luffs at 10 deg/s")
+            if speed > limit:
+                raise SceneError(f"{scene.path}: 'neighbour.schedule[{i}]' asks the neighbour's {axis} for "
+                                 f"{speed:.4g} {unit} on average from schedule[{i - 1}]: at most {limit:.4g} {unit} "
+                                 f"({why})")
+
+
+_AXES = ("travel", "slew", "luff")  # qpos order, as bwr_twin.model.machine.AXES
+
+
+@functools.lru_cache(maxsize=16)
+def _axis_facts(mjcf: Path, stamp: tuple):
+    """(file name, rated speeds m/s deg/s deg/s, envelope spans m deg deg, scanner names, has a belt
+    scale) of a machine file, or None if it does not compile; once per version of the file."""
+    from bwr_twin.model.machine import Machine  # compiles MuJoCo models: only for scenes that need it
+
+    try:
+        machine = Machine(mjcf)
+    except ModelError:
+        return None
+    rated = [float(v) for v in machine.rated_speed]
+    rated[1:] = [math.degrees(v) for v in rated[1:]]
+    spans = [float(high - low) for low, high in machine.envelope]
+    spans[1:] = [math.degrees(v) for v in spans[1:]]
+    scanners = tuple(s.name for s in machine.scanners)
+    return mjcf.name, tuple(rated), tuple(spans), scanners, machine.belt_scale is not None

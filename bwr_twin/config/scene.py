@@ -832,6 +832,9 @@ def _check_sensing(scene: Scene) -> None:
     p, sensing = scene.path, scene.sensing
     if sensing.scanners and scene.stockpile is None:
         raise SceneError(f"{p}: 'sensing.scanners' is true, but the scene has no [stockpile] to scan")
+    if sensing.rate_signals == "measured" and scene.reclaim is None:
+        raise SceneError(f"{p}: 'sensing.rate_signals' \"measured\" is what a [reclaim]'s rate loop reads from the "
+                         "belt scale and the wheel motor, but the scene has no [reclaim] of a pile: nothing would read them")
     survey = scene.reclaim.survey if scene.reclaim is not None else None
     if sensing.pile_model == "scanned":
         if scene.reclaim is None:
