@@ -204,6 +204,11 @@ class BenchTracking:
                            (len(signals.belt_rate),), time)
         if not np.isfinite(trim).all():
             raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
+        low, high = self._trim_limits
+        if self.external_trim is None and not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
+            raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must lie within "
+                              f"'reclaim.rate_control.trim_limits' [{low:g}, {high:g}] (a multiple of the slew "
+                              "speed law's, never negative)")
         stop, stopping = self._stop, None
         if stop.time is not None and k * self._period >= stop.time - 1e-9:
             stopping = np.ones(len(trim), dtype=bool)
