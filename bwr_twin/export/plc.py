@@ -37,7 +37,14 @@ from bwr_twin.export.blocks import (
 )
 from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.export.plcopen import project_xml
-from bwr_twin.export.structured_text import Block, GlobalConstants, as_real, block_text, globals_text
+from bwr_twin.export.structured_text import (
+    Block,
+    GlobalConstants,
+    as_real,
+    block_text,
+    check_constants,
+    globals_text,
+)
 from bwr_twin.model.machine import Machine
 from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import staged_directory
@@ -76,6 +83,9 @@ def export_plc(scene: Scene, out: Path, *, real: bool = False, grid: int | None 
         raise SceneError(f"{scene.path}: --fuzzy {fuzzy} sets how a fuzzy controller infers; [controller] type "
                          f"{scene.controller.type!r} has no fuzzy part")
     block, constants = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
+    variables = [(block.name, v) for section in block.variables.values() for v in section]
+    variables += [(c.name, v) for c in constants for v in c.variables]
+    check_constants(f"{scene.path}: [controller]", variables, real)
     files = {f"{block.name}.st": block_text(block)}
     files |= {f"{c.name}.st": globals_text(c) for c in constants}
     files[PROJECT] = project_xml(block, constants, scene.path.name)

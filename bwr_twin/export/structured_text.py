@@ -16,8 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bwr_twin.errors import SceneError
+
 LREAL_MAX = float(np.finfo(np.float64).max)
 REAL_MAX = float(np.finfo(np.float32).max)
+LREAL_TINY = float(np.finfo(np.float64).tiny)  # the smallest normal LREAL: below it, a denormal or 0
+REAL_TINY = float(np.finfo(np.float32).tiny)  # the smallest normal REAL, 1.18e-38
 SECTIONS = ("VAR_INPUT", "VAR_OUTPUT", "VAR", "VAR CONSTANT")
 
 
@@ -39,6 +43,24 @@ def as_real(text: str) -> str:
     compiler rounds to the nearest REAL; an unrated drive's limit becomes the largest REAL."""
     return (text.replace(lreal(LREAL_MAX), lreal(REAL_MAX)).replace("LREAL", "REAL")
             .replace("64-bit", "32-bit"))
+
+
+def check_constants(where: str, variables: Sequence[tuple[str, Var]], real: bool) -> None:
+    """SceneError naming the first constant that its type cannot hold: beyond the largest REAL
+    (with `real`), or nonzero below the smallest normal number (a denormal, which PLCs flush to 0
+    or trap on). The largest LREAL, an unrated drive's limit, becomes the largest REAL as it should."""
+    kind, largest, tiny = ("REAL", REAL_MAX, REAL_TINY) if real else ("LREAL", LREAL_MAX, LREAL_TINY)
+    for owner, var in variables:
+        if var.type != "LREAL" or var.value is None:
+            continue
+        for i, literal in enumerate(var.value):
+            value = abs(float(literal))
+            if value == LREAL_MAX:
+                continue  # ST's infinity, an unrated drive's limit
+            if value > largest or 0 < value < tiny:
+                index = f"[{i}]" if var.dims else ""
+                raise SceneError(f"{where}: the constant {owner}.{var.name}{index} = {literal} lies outside {kind}'s "
+                                 f"range (magnitudes {tiny:.3g} to {largest:.3g}, or 0): the PLC cannot hold it")
 
 
 @dataclass(frozen=True)
