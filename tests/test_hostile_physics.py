@@ -128,3 +128,11 @@ def test_a_gain_beyond_the_plcs_numbers(tmp_path, gain, real, pattern):
     text = extends("pid_paper.toml") + f"\n[controller]\nkp = [{gain}, 7262500.0, 5000000.0]\n"
     refused(tmp_path, text, r"bad\.toml: \[controller\]: the constant " + pattern, module="export",
             args=("plc", "--real") if real else ("plc",))
+
+
+def test_a_recorded_grade_of_1e300(tmp_path):
+    grade = tmp_path / "grade.csv"
+    grade.write_text("t,grade\n0,62\n100000,1e300\n")
+    text = extends("heavy_chevron_stack.toml") + (f'replace = ["stacking.grade"]\n\n[stacking.grade]\nname = "Fe %"\n'
+                                                  f'file = "{grade}"\n')
+    refused(tmp_path, text, r"grade\.csv: line 3, column 2 \(grade\): 1e300 lies beyond \+-1e\+06")

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bwr_twin.config.bounds import GRADE_ANY
 from bwr_twin.errors import SceneError, shown_text
 from bwr_twin.textfile import read_text
 from bwr_twin.values import reads_as_number
@@ -145,6 +146,9 @@ def _read_rows(file: Path) -> tuple[np.ndarray, np.ndarray]:
         if t and not float(cells[0]) > t[-1]:
             raise SceneError(f"{file}: line {number}, column 1 (t): {cells[0]} s does not follow "
                              f"{t[-1]:g} s: t must increase")
+        if abs(float(cells[1])) > GRADE_ANY[1]:
+            raise SceneError(f"{file}: line {number}, column 2 (grade): {cells[1]} lies beyond +-{GRADE_ANY[1]:g}: "
+                             "a grade is a content, a share, a percentage or ppm of the stream (GRADE_ANY)")
         t.append(float(cells[0]))
         grade.append(float(cells[1]))
     if not t:
