@@ -41,6 +41,7 @@ class Parts:
     belief_machine: Machine  # the controller's, its own compiled model even from the same file
     tracking: PathTracking | BenchTracking  # what the runs follow
     plant: Plant
+    parameters: RunParameters  # what may differ between the runs: seeds, gains, wind, ...
     nthread: int  # threads the plant and the controller may use
     stages: tuple[stages.Stage, ...]  # in the order they run in each period
     faults: Faults  # the scene's scheduled faults; `faults.acting(k)` says which act in period k
@@ -119,8 +120,8 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     if faults.active:
         order.append(stages.FaultsOnDrives(faults, scenes))
     return Parts(machine=machine, belief_machine=Machine(scene.controller_mjcf), tracking=tracking, plant=plant,
-                 nthread=nthread, stages=tuple(order), faults=faults, reclaim=reclaim, scanning=scanning, instruments=instruments,
-                 neighbour=neighbour, stacking=stacking)
+                 parameters=parameters, nthread=nthread, stages=tuple(order), faults=faults, reclaim=reclaim,
+                 scanning=scanning, instruments=instruments, neighbour=neighbour, stacking=stacking)
 
 
 def _interlock(scene: Scene, machine: Machine, surface, runs: int, tracking, plant: Plant, reclaim: Reclaim | None,

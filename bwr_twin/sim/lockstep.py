@@ -18,6 +18,7 @@ metrics and the record. Every optional part of the world is a stage the loop wal
 
 from __future__ import annotations
 
+import functools
 import types
 from collections.abc import Callable, Sequence
 
@@ -33,7 +34,6 @@ from bwr_twin.model.machine import AXES
 from bwr_twin.sim.assembly import assemble
 from bwr_twin.sim.block import BLOCK, Block, read_only
 from bwr_twin.sim.observer import Observer
-from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import mujoco_warnings
 from bwr_twin.sim.record import RunResult
 from bwr_twin.sim.stages import Hooks
@@ -185,7 +185,7 @@ class Lockstep:
             self._observer = Observer(
                 self.runs, self.samples, period, round(sim.record_period / period), self.machine,
                 path=None if self.tracking.own_rows else self.tracking.rows,
-                wind_mean=RunParameters.of(scenes).wind_speed, reclaim=parts.reclaim is not None,
+                wind_mean=parts.parameters.wind_speed, reclaim=parts.reclaim is not None,
                 neighbour=parts.neighbour is not None)
         self._controller: Controller | None = None  # whose declared signals are recorded
         self.command_source = "the drive forces given"  # who computes them, for messages
@@ -224,33 +224,34 @@ class Lockstep:
         """Indices of the runs still stepped; None: all."""
         return self._plant.alive
 
-    @property
+    @functools.cached_property
     def q_true(self) -> np.ndarray:
-        """(runs, 3) read-only: the true joint positions (m, rad)."""
+        """(runs, 3) read-only: the true joint positions (m, rad). Like the views below, made once:
+        drivers read them every period."""
         return read_only(self._plant.qpos)
 
-    @property
+    @functools.cached_property
     def qd_true(self) -> np.ndarray:
         """(runs, 3) read-only: the true joint velocities (m/s, rad/s)."""
         return read_only(self._plant.qvel)
 
-    @property
+    @functools.cached_property
     def drive_force(self) -> np.ndarray:
         """(runs, 3) read-only: the forces the drives applied in the last period (N, N m)."""
         return read_only(self._plant.drive_force)
 
-    @property
+    @functools.cached_property
     def failures(self) -> types.MappingProxyType:
         """Run index -> why it stopped."""
         return types.MappingProxyType(self._plant.failures)
 
-    @property
+    @functools.cached_property
     def path(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """A path scene's read-only (samples, 3) reference positions, velocities and accelerations,
         the same for every run; None for a bench reclaim."""
         return tuple(read_only(rows) for rows in self.tracking.rows) if self.tracking.shared else None
 
-    @property
+    @functools.cached_property
     def reclaim_rate(self) -> np.ndarray | None:
         """(runs,) t/h on the belt this period (read-only), or None without a stockpile."""
         return None if self.reclaim is None else read_only(self.reclaim.rate)

@@ -202,10 +202,10 @@ class BenchTracking:
         else:
             trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
                            (len(signals.belt_rate),), time)
-        if not np.isfinite(trim).all():
-            raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
-        low, high = self._trim_limits
-        if self.external_trim is None and not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
+        low, high = self._trim_limits  # an external trim is clipped to them; NaN lies within none
+        if not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
+            if not np.isfinite(trim).all():
+                raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
             raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must lie within "
                               f"'reclaim.rate_control.trim_limits' [{low:g}, {high:g}] (a multiple of the slew "
                               "speed law's, never negative)")
