@@ -11,7 +11,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     # small helpers: units, numbers, text files, signal names, the CLI's parts, shipped files, output marks
     ("units", "values", "textfile", "signals", "progress", "arguments", "exposure", "shipped", "ownership", "streams",
      "layers"),
-    ("arrays",),  # arrays and rows from the files a user gives, checked before they are believed
+    ("arrays", "tomlfile"),  # what the files a user gives hold: arrays and rows checked before they are believed, TOML
     ("model",),  # the machine from its MJCF: kinematics, dynamics, collision shapes, instruments, scanners
     ("control",),  # the control laws and the fuzzy rule base they read
     ("fis",),  # fuzzy systems in .fis, FCL and FLL, and their conversion to and from control's rule base

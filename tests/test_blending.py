@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from bwr_twin import SceneError
-from bwr_twin.config.scene import StockpileSection, WindrowSection
+from bwr_twin.config.sections import StockpileSection, WindrowSection
 from bwr_twin.pile.relaxation import DEFAULT_TOLERANCE, Talus, relax
 from bwr_twin.pile.surface import Surface, windrow
 from bwr_twin.stockpile.blending import blend, chevron_pile, slice_grades, stacked_grades

@@ -77,7 +77,7 @@ def test_an_engineers_controller_runs_in_a_batch_on_spawned_workers(tmp_path):
 
 @pytest.mark.parametrize("name", ["pid_paper", "computed_torque_paper", "pid_heavy", "computed_torque_heavy"])
 def test_every_baseline_scene_tracks_the_first_minute_of_its_path(name, tmp_path):
-    from bwr_twin.config.scene import ViaPoint
+    from bwr_twin.config.sections import ViaPoint
 
     scene = load_scene(SCENES / f"{name}.toml")
     first = scene.trajectory.via_points[:2]

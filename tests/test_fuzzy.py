@@ -281,7 +281,7 @@ def test_unreadable_rule_base_files(tmp_path):
         RuleBase.from_toml(tmp_path / "missing.toml")
     broken = tmp_path / "broken.toml"
     broken.write_text("sets = [\n")
-    with pytest.raises(SceneError, match="not valid TOML") as info:
+    with pytest.raises(SceneError, match="malformed TOML") as info:
         RuleBase.from_toml(broken)
     assert str(broken) in str(info.value)
     empty = tmp_path / "empty.toml"

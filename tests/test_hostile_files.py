@@ -24,7 +24,7 @@ import pytest
 from conftest import ROOT, SCENES
 
 from bwr_twin.arrays import Member, load_npz, read_lines
-from bwr_twin.config.scene import StockpileSection
+from bwr_twin.config.sections import StockpileSection
 from bwr_twin.errors import BwrError, SceneError
 from bwr_twin.pile.stacked_file import stacked_arrays
 from bwr_twin.pile.surface import MAX_SURVEY_POINTS, build_surface

@@ -9,7 +9,8 @@ from conftest import SCENES
 from test_reclaim_plan import scene_file
 
 from bwr_twin import SceneError
-from bwr_twin.config.scene import RateControlSection, load_scene
+from bwr_twin.config.scene import load_scene
+from bwr_twin.config.sections import RateControlSection
 from bwr_twin.control.rate import PowerAndScale, RateSignals, WheelCalibration
 from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec
 from bwr_twin.model.machine import Machine

@@ -13,7 +13,8 @@ import pytest
 from conftest import HEAVY_MJCF, SCENES, VARIANT_MJCF
 
 from bwr_twin import ModelError, SceneError
-from bwr_twin.config.scene import StockpileSection, WindrowSection, load_scene
+from bwr_twin.config.scene import load_scene
+from bwr_twin.config.sections import StockpileSection, WindrowSection
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_heights
 from bwr_twin.pile.cutting import Cutter

@@ -5,7 +5,7 @@ import pytest
 from conftest import PAPER_VIA_POINTS
 
 from bwr_twin import EnvelopeError, UnreachableError
-from bwr_twin.config.scene import PathSection, ViaPoint
+from bwr_twin.config.sections import PathSection, ViaPoint
 from bwr_twin.model.machine import paper_to_world
 from bwr_twin.planning.trajectory import Trajectory
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.config.scene import WindrowSection
+from bwr_twin.config.sections import WindrowSection
 from bwr_twin.model.machine import Wheel
 from bwr_twin.pile.cutting import Cutter
 from bwr_twin.pile.relaxation import Talus, relax

@@ -44,7 +44,7 @@ class Interlock:
     """Never intervenes (pace 1). Subclasses decide in `pace`.
 
     Attributes:
-        settings: the scene's [interlock] (bwr_twin.config.scene.InterlockSection).
+        settings: the scene's [interlock] (bwr_twin.config.sections.InterlockSection).
         parts: the collision shapes' part names, in the order of `pace`'s clearance columns.
         levers: (3,) m a unit of each joint's speed moves any shape's corner at most.
         period: s between calls.

@@ -14,7 +14,6 @@ same sweep.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.ownership import write_atomically
 from bwr_twin.shipped import find_scene
+from bwr_twin.tomlfile import toml_value
 
 SCENE, INTERLOCKED = "heavy_rail_scenario", "heavy_rail_scenario_interlocked"
 DURATION = 45.0  # s of each scenario
@@ -56,8 +56,8 @@ def write_sweeps(folder: Path, schedules: int, seed: int) -> tuple[Path, Path]:
                 "neighbour.schedule": drawn}
         text = (f"# {schedules} random neighbour schedules (seed {seed}) x {len(PATHS)} paths x "
                 f"{len(REPORT_DELAYS)} report delays x {len(FAULTS)} fault classes: bwr_twin.collision.scenarios\n"
-                f"scene = {json.dumps(str(find_scene(name)))}\n\n[vary]\n"
-                + "".join(f'"{key}" = {_toml(value)}\n' for key, value in vary.items()))
+                f"scene = {toml_value(str(find_scene(name)))}\n\n[vary]\n"
+                + "".join(f'"{key}" = {toml_value(value)}\n' for key, value in vary.items()))
         write_atomically(path, lambda temporary, text=text: temporary.write_text(text))
         written.append(path)
     return written[0], written[1]
@@ -96,11 +96,3 @@ def _joints(values) -> np.ndarray:
 def _rounded(q: np.ndarray) -> list[float]:
     return [round(float(v), 3) for v in q]
 
-
-def _toml(value) -> str:
-    """A TOML value of lists, tables, numbers and strings (inline tables)."""
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    return json.dumps(value)

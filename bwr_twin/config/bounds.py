@@ -103,7 +103,8 @@ _Facts = tuple[str, float, float, float, float]  # machine file name, weight N, 
 
 def check_bounds(scene) -> None:
     """SceneError, naming the file, the key and the limit, for a physical input of `scene` (a
-    bwr_twin.config.scene.Scene, which calls this as it is built) out of its range."""
+    bwr_twin.config.sections.Scene; bwr_twin.config.rules calls this as a scene is built) out of
+    its range."""
     p, pile, plant = scene.path, scene.stockpile, scene.plant
     if pile is not None:
         _within(p, "stockpile.bulk_density", pile.bulk_density, BULK_DENSITY, "kg/m3",

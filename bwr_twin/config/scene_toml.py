@@ -6,13 +6,8 @@ written absolute; keys without a value (None) are left out, as the file would le
 
 from __future__ import annotations
 
-import json
-import math
-from typing import Any
-
-from bwr_twin.config.scene import Scene
-
-_TABLE_NAMES = {"trajectory": "path"}  # Scene field -> TOML table, as load_scene reads them
+from bwr_twin.config.sections import TABLE_NAMES, Scene
+from bwr_twin.tomlfile import toml_value
 
 
 def scene_toml(scene: Scene, header: str = "") -> str:
@@ -24,23 +19,8 @@ def scene_toml(scene: Scene, header: str = "") -> str:
         for entry in table if isinstance(table, list) else [table]:  # a list of tables: [[faults]]
             if not isinstance(entry, dict):
                 continue
-            name = _TABLE_NAMES.get(field, field)
+            name = TABLE_NAMES.get(field, field)
             lines += ["", f"[[{name}]]" if isinstance(table, list) else f"[{name}]"]
-            lines += [f"{key} = {_value(value)}" for key, value in entry.items() if value is not None]
+            lines += [f"{key} = {toml_value(value)}" for key, value in entry.items() if value is not None]
     return "\n".join(lines).lstrip("\n") + "\n"
 
-
-def _value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValueError(f"a scene holds no {value}")
-        return repr(value)
-    if isinstance(value, (int, str)):
-        return json.dumps(value)  # a TOML basic string is a JSON string
-    if isinstance(value, list):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_value(v)}" for k, v in value.items() if v is not None) + " }"
-    raise TypeError(f"no TOML for {type(value).__name__}")

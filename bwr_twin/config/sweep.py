@@ -25,23 +25,18 @@ import itertools
 import json
 import math
 import re
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 import numpy as np
 
-from bwr_twin.config.scene import PATH_KEYS, Scene, load_scene
+from bwr_twin.config.scene import Scene, load_scene
+from bwr_twin.config.scene_file import PATH_KEYS
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
-from bwr_twin.textfile import read_text
+from bwr_twin.tomlfile import at_dotted, read_toml
 from bwr_twin.values import is_integer, is_number
 
 _TOP_LEVEL_KEYS = ("scene", "seeds", "vary")
@@ -96,7 +91,7 @@ def load_sweep(path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Sweep:
     exceeds `max_runs` (None: only PLANNABLE_RUNS), before any is planned.
     """
     path = Path(path)
-    raw = _read_toml(path)
+    raw = read_toml(path, "sweep")
     unknown = sorted(set(raw) - set(_TOP_LEVEL_KEYS))
     if unknown:
         raise SceneError(f"{path}: unknown key '{unknown[0]}' (valid here: {', '.join(_TOP_LEVEL_KEYS)})")
@@ -139,17 +134,6 @@ def load_sweep(path: str | Path, *, max_runs: int | None = MAX_RUNS) -> Sweep:
 def parameter_label(key: str) -> str:
     """A varied key without its table, as run names and plots show it: 'output_gain.travel'."""
     return key.split(".", 1)[-1]
-
-
-def _read_toml(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise SceneError(f"{path}: sweep file not found")
-    try:
-        return tomllib.loads(read_text(path))
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: malformed TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise SceneError(f"{path}: not a text file") from None
 
 
 def _scene(sweep_path: Path, base_path: Path, overrides: dict[str, Any]) -> Scene:
@@ -241,7 +225,7 @@ def axis_components(varied: dict[str, list], base: dict[str, Any], path: Path) -
     components = {}
     for key in varied:
         parent, _, last = key.rpartition(".")
-        if last in AXES and _is_vector(lookup(base, parent)):
+        if last in AXES and _is_vector(at_dotted(base, parent, None)):
             if parent in varied:
                 raise SceneError(f"{path}: 'vary' has both '{parent}' and its axis '{key}': "
                                  "vary one or the other")
@@ -256,20 +240,12 @@ def scene_overrides(parameters: dict[str, Any], components: dict[str, tuple[str,
     for key, value in parameters.items():
         if key in components:
             parent, axis = components[key]
-            overrides.setdefault(parent, list(lookup(base, parent)))[axis] = value
+            overrides.setdefault(parent, list(at_dotted(base, parent)))[axis] = value
         elif key.rsplit(".", 1)[-1] in PATH_KEYS and isinstance(value, str):  # relative to the sweep file
             overrides[key] = str((folder / value).resolve())
         else:
             overrides[key] = value
     return overrides
-
-
-def lookup(table: dict[str, Any], dotted: str) -> Any:
-    for name in dotted.split("."):
-        if not isinstance(table, dict) or name not in table:
-            return None
-        table = table[name]
-    return table
 
 
 def _run_id(index: int, width: int, labels: dict[str, str], seed: int) -> str:

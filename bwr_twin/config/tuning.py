@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,12 +50,9 @@ from bwr_twin.config.sweep import axis_components, scene_overrides
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import AXES
 from bwr_twin.textfile import read_text
+from bwr_twin.tomlfile import MISSING, at_dotted, read_toml
 from bwr_twin.values import is_integer, is_number
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 # metrics.json keys an objective may weigh: a per-axis value whose smaller magnitude is better.
 OBJECTIVE_METRICS = ("position_error_max", "position_error_rms", "velocity_error_max", "acceleration_error_max",
@@ -128,13 +124,7 @@ class Tuning:
 def load_tuning(path: str | Path) -> Tuning:
     """Read and check a tuning file and its base scene."""
     path = Path(path)
-    if not path.is_file():
-        raise SceneError(f"{path}: tuning file not found")
-    try:
-        text = read_text(path)
-        raw = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: malformed TOML: {exc}") from None
+    raw = read_toml(path, "tuning")
 
     def fail(key: str, what: str) -> SceneError:
         return SceneError(f"{path}: '{key}' {what}")
@@ -206,7 +196,7 @@ def load_tuning(path: str | Path) -> Tuning:
     if not (is_integer(seed) and seed >= 1):
         raise fail("optimizer.seed", f"must be an integer >= 1, got {seed!r}")
     tuning = Tuning(
-        path=path, digest=hashlib.sha256(text.encode()).hexdigest(), base=base,
+        path=path, digest=hashlib.sha256(read_text(path).encode()).hexdigest(), base=base,
         parameters=parameters, start=start, training_seeds=training, held_out_seeds=held_out,
         objective=objective, max_saturation=saturation, max_drive_rms=tuple(drive_rms) if drive_rms else None,
         limits_allowed=limits, evaluations=evaluations, wall_time=wall_time, population=population,
@@ -250,7 +240,6 @@ NOT_TUNABLE = {
     "stockpile.colour": "only changes how the pile is drawn",
     "stockpile.base_depth": "only changes how the pile is drawn",
 }
-_MISSING = object()
 
 
 def _tunable_value(key: str, components: dict, base: dict, where: str, fail) -> float:
@@ -260,12 +249,12 @@ def _tunable_value(key: str, components: dict, base: dict, where: str, fail) -> 
             raise fail(where, f"cannot be tuned: '{prefix}' {why}")
     if key in components:
         parent, axis = components[key]
-        return float(_find(base, parent)[axis])
-    value = _find(base, key)
+        return float(at_dotted(base, parent)[axis])
+    value = at_dotted(base, key)
     parent, _, last = key.rpartition(".")
-    if value is _MISSING and _is_axes(_find(base, parent)):
+    if value is MISSING and _is_axes(at_dotted(base, parent)):
         raise fail(where, f"names no axis of the per-axis list '{parent}': tune {_axes_of(parent)}")
-    if value is _MISSING:
+    if value is MISSING:
         raise fail(where, f"names no key of the base scene; its numbers that can be tuned: "
                    f"{', '.join(tunable_keys(base))}")
     if value is None:
@@ -296,15 +285,6 @@ def tunable_keys(base: dict) -> list[str]:
 
     walk({k: v for k, v in base.items() if k not in ("path", "trajectory")}, "")
     return keys
-
-
-def _find(table: Any, dotted: str) -> Any:
-    """The value at a dotted key, None where the scene leaves it unset, _MISSING where it has none."""
-    for name in dotted.split("."):
-        if not isinstance(table, dict) or name not in table:
-            return _MISSING
-        table = table[name]
-    return table
 
 
 def _is_axes(value: Any) -> bool:

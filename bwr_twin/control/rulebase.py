@@ -11,7 +11,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,13 +19,8 @@ from typing import Any
 import numpy as np
 
 from bwr_twin.errors import SceneError
-from bwr_twin.textfile import read_text
+from bwr_twin.tomlfile import read_toml
 from bwr_twin.values import is_number
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 _DIGEST_SCHEMA = "bwr_twin.control.fuzzy.RuleBase/1"
 
@@ -77,15 +71,7 @@ class RuleBase:
     def from_toml(cls, path: str | Path) -> RuleBase:
         """Read and check a rule base file; every problem is a one-line SceneError."""
         path = Path(path)
-        try:
-            data = tomllib.loads(read_text(path))  # a byte-order mark or CRLF ends read as without
-        except FileNotFoundError:
-            raise SceneError(f"{path}: rule base file not found") from None
-        except OSError as exc:
-            raise SceneError(f"{path}: cannot read the rule base: {exc.strerror}") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise SceneError(f"{path}: not valid TOML: {exc}") from None
-        return _parse(path, data)
+        return _parse(path, read_toml(path, "rule base"))
 
     def digest(self) -> str:
         """sha256 of the content (not of the file or its comments): the surface cache key."""

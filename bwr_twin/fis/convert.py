@@ -27,6 +27,7 @@ from bwr_twin.fis.reader import read_fis
 from bwr_twin.fis.system import AND, FuzzySystem, MembershipFunction, Rule, Variable, check
 from bwr_twin.fis.writer import fis_text, format_number
 from bwr_twin.textfile import read_text
+from bwr_twin.tomlfile import toml_value
 
 SUFFIXES = (".fis", ".toml", ".fcl")  # what convert reads
 OUTPUT_SUFFIXES = SUFFIXES + (".fll",)  # and writes: FLL for fuzzylite (bwr_twin.fis.fll)
@@ -200,9 +201,9 @@ def rulebase_toml(rule_base: RuleBase, source: str, system: FuzzySystem | None =
         "]",
         "",
         "[universe]",
-        f"e = [{_toml_float(rule_base.e_range[0])}, {_toml_float(rule_base.e_range[1])}]",
-        f"ec = [{_toml_float(rule_base.ec_range[0])}, {_toml_float(rule_base.ec_range[1])}]",
-        f"output = [{_toml_float(rule_base.output_range[0])}, {_toml_float(rule_base.output_range[1])}]",
+        f"e = [{toml_value(float(rule_base.e_range[0]))}, {toml_value(float(rule_base.e_range[1]))}]",
+        f"ec = [{toml_value(float(rule_base.ec_range[0]))}, {toml_value(float(rule_base.ec_range[1]))}]",
+        f"output = [{toml_value(float(rule_base.output_range[0]))}, {toml_value(float(rule_base.output_range[1]))}]",
         "",
         "[membership]",
         "# Evenly spaced triangles (RuleBase.term_abcs), as the sets of the source were.",
@@ -277,10 +278,6 @@ def output_text(system: FuzzySystem, out: Path, source: str) -> str:
     if suffix == ".toml":
         return rulebase_toml(fis_to_rulebase(system), source, system)
     raise SceneError(f"{out}: unknown output suffix {out.suffix!r} (known: {', '.join(OUTPUT_SUFFIXES)})")
-
-
-def _toml_float(value: float) -> str:
-    return repr(float(value))  # always has a '.' or an exponent: a TOML float that reads back exactly
 
 
 def _with_line(message: str, path: Path) -> str:

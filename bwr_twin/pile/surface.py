@@ -16,7 +16,7 @@ import numpy as np
 
 from bwr_twin.arrays import Member, check_within, first_false, load_npz, npz_keys, read_lines
 from bwr_twin.config.bounds import PILE_HEIGHT, PILE_HEIGHT_SOURCE
-from bwr_twin.config.scene import StockpileSection, WindrowSection
+from bwr_twin.config.sections import StockpileSection, WindrowSection
 from bwr_twin.errors import SceneError
 from bwr_twin.pile.ground import YARD_FLOOR
 from bwr_twin.pile.stacked_file import stacked_arrays

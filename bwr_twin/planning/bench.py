@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.config.scene import ReclaimSection, Scene, StockpileSection
+from bwr_twin.config.sections import ReclaimSection, Scene, StockpileSection
 from bwr_twin.errors import EnvelopeError, SceneError
 from bwr_twin.model.machine import AXES, Machine, describe
 from bwr_twin.pile.cutting import Cutter

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.config.scene import PathSection
+from bwr_twin.config.sections import PathSection
 from bwr_twin.errors import EnvelopeError
 from bwr_twin.model.machine import AXES, Machine, describe, paper_to_world
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from bwr_twin.config.scene import StockpileSection
+from bwr_twin.config.sections import StockpileSection
 from bwr_twin.errors import SceneError
 from bwr_twin.units import KG_PER_T
 

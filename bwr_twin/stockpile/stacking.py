@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bwr_twin.config.scene import GradeSection, Scene
+from bwr_twin.config.sections import GradeSection, Scene
 from bwr_twin.errors import SceneError
 from bwr_twin.model.machine import Machine
 from bwr_twin.pile.relaxation import Talus
