@@ -271,12 +271,12 @@ def test_a_discharge_refuses_a_negative_rate_and_a_talus_for_another_grid():
 
 
 def test_the_material_comes_from_the_scene():
-    section = StockpileSection(bulk_density=2400.0, windrow=WindrowSection(10.0, 2.0, 3.0, 38.0, (0.0, 20.0)))
+    section = StockpileSection(bulk_density=2400.0, grid_spacing=0.25, windrow=WindrowSection(10.0, 2.0, 3.0, 38.0, (0.0, 20.0)))
     material = Material.of(section, Path("scene.toml"))
     assert material == Material(2400.0, 38.0)
     assert material.tonnes(material.volume(123.0)) == pytest.approx(123.0, rel=1e-15)
     with pytest.raises(SceneError, match="scene.toml: .*angle_of_repose"):
-        Material.of(StockpileSection(bulk_density=2400.0, surface_file=Path("survey.npz")), Path("scene.toml"))
+        Material.of(StockpileSection(bulk_density=2400.0, grid_spacing=0.25, surface_file=Path("survey.npz")), Path("scene.toml"))
 
 
 # --- the grade stream ----------------------------------------------------------------------

@@ -217,7 +217,7 @@ def test_a_survey_past_the_row_cap_is_refused_while_it_is_read(tmp_path):
     started = time.perf_counter()
     with pytest.raises(SceneError, match=r"cloud.csv: more than 1,000,001 lines, the most it may hold: a survey of at "
                                          r"most 1,000,000 points and a header \(thin the cloud\)"):
-        build_surface(StockpileSection(2400.0, 0.5, surface_file=tmp_path / "cloud.csv"), tmp_path)
+        build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "cloud.csv"), tmp_path)
     assert time.perf_counter() - started < 1.0
 
 
@@ -262,7 +262,7 @@ def test_survey_heights_that_cannot_be_are_refused(tmp_path, edit, message):
 def test_a_point_survey_with_a_height_that_cannot_be_is_refused_naming_the_row(tmp_path):
     (tmp_path / "points.csv").write_text("x,y,z\n0,0,1\n1,0,2\n0,1,1e9\n")
     with pytest.raises(SceneError, match=r"points.csv: data row 3: z 1e\+09 m lies outside \[-5, 100\] \(metres above"):
-        build_surface(StockpileSection(2400.0, 0.5, surface_file=tmp_path / "points.csv"), tmp_path)
+        build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "points.csv"), tmp_path)
 
 
 def _negative_thickness(a):

@@ -3,12 +3,15 @@ rate instruments it trims from, and the scheduled faults as the controller sees 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import SCENES
 from test_reclaim_plan import scene_file
 
 from bwr_twin import SceneError
+from bwr_twin.config.builder import build
 from bwr_twin.config.scene import load_scene
 from bwr_twin.config.sections import RateControlSection
 from bwr_twin.control.rate import PowerAndScale, RateSignals, WheelCalibration
@@ -149,7 +152,8 @@ def test_the_belt_scale_calibrates_the_power_the_loop_trims_from():
     high; once the scale has weighed enough, the scale's tonnes over the power's a belt delay
     earlier bring the loop's reading to the true rate, the pulses of the face and all."""
     period, delay, target = 0.1, 2.0, np.array([8000.0, 8000.0])
-    settings = RateControlSection(type="power_and_scale", calibration_time=60.0)
+    settings = build(RateControlSection, {"type": "power_and_scale", "calibration_time": 60.0}, Path("scene.toml"),
+                     "reclaim.rate_control")  # the other keys from the shipped defaults
     true_energy, density, idle = 6.0e5, 2200.0, 3.0e5
     wheel = WheelCalibration(idle_power=np.full(2, idle), cutting_energy=np.array([0.8, 1.0]) * true_energy,
                              bulk_density=np.full(2, density), belt_delay=delay)

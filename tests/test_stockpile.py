@@ -277,12 +277,12 @@ def test_a_surveyed_surface_from_points_or_a_grid_matches_the_windrow_it_samples
     windrow = WindrowSection(length=40.0, crest_width=6.0, height=12.0, angle_of_repose=37.0, centre=(0.0, 40.0))
     grid = build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, windrow=windrow), tmp_path)
     np.savez(tmp_path / "survey.npz", x=grid.x, y=grid.y, z=grid.z)
-    from_grid = build_surface(StockpileSection(2400.0, 0.5, surface_file=tmp_path / "survey.npz"), tmp_path)
+    from_grid = build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "survey.npz"), tmp_path)
     assert from_grid.volume() == pytest.approx(grid.volume(), rel=1e-9)
     gx, gy = np.meshgrid(grid.x[::2], grid.y[::2])
     points = np.column_stack([gx.ravel(), gy.ravel(), grid.z[::2, ::2].ravel()])
     np.savetxt(tmp_path / "survey.csv", points, delimiter=",", header="x,y,z", comments="")
-    from_points = build_surface(StockpileSection(2400.0, 0.5, surface_file=tmp_path / "survey.csv"), tmp_path)
+    from_points = build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "survey.csv"), tmp_path)
     assert from_points.volume() == pytest.approx(grid.volume(), rel=0.02)  # linear between 1 m samples
 
 
@@ -294,7 +294,7 @@ def test_a_surveyed_surface_from_points_or_a_grid_matches_the_windrow_it_samples
 def test_a_bad_survey_is_named_with_its_row(tmp_path, content, message):
     (tmp_path / "survey.csv").write_text(content)
     with pytest.raises(SceneError, match=rf"'stockpile.surface_file' .*survey.csv: {message}"):
-        build_surface(StockpileSection(2400.0, 0.5, surface_file=tmp_path / "survey.csv"), tmp_path)
+        build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "survey.csv"), tmp_path)
 
 
 def test_a_run_writes_its_pile_rate_and_figures(tmp_path):

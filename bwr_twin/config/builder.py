@@ -1,5 +1,7 @@
 """A scene's TOML tables built into its typed sections: every key checked against the dataclass's
-field types (bwr_twin.config.sections), each refusal one line naming the file and the key.
+field types (bwr_twin.config.sections), each refusal one line naming the file and the key. A key
+the file leaves out takes its value from the shipped defaults (scenes/defaults/scene_defaults.toml),
+and a table the defaults hold may be left out whole.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from typing import Any, Literal
 from bwr_twin.config.plugins import CONTROLLERS, controller_class
 from bwr_twin.config.sections import TABLE_NAMES, ControllerSection
 from bwr_twin.errors import SceneError
+from bwr_twin.shipped import SCENE_DEFAULTS
+from bwr_twin.tomlfile import MISSING, at_dotted, read_toml
 from bwr_twin.values import is_integer, is_number
 
 # Keys that have moved: old dotted key -> new dotted key.
@@ -22,6 +26,10 @@ MOVED_KEYS = {
     "controller.velocity_filter": "encoders.velocity_filter",
 }
 
+
+@functools.cache
+def _defaults() -> dict[str, Any]:
+    return read_toml(SCENE_DEFAULTS, "defaults")
 
 
 def build(cls: type, table: Any, path: Path, where: str) -> Any:
@@ -42,12 +50,16 @@ def build(cls: type, table: Any, path: Path, where: str) -> Any:
     kwargs = {}
     for name, f in fields.items():
         key = _join(where, TABLE_NAMES.get(name, name))
-        if name not in table:
-            no_default = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
-            if no_default:
+        value = table.get(name, MISSING)
+        if value is MISSING:
+            if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING:
+                continue  # a choice, or "none"
+            value = at_dotted(_defaults(), key)
+            if isinstance(value, dict):
+                value = {}  # a table the defaults hold: built from them alone
+            elif value is MISSING:
                 raise SceneError(f"{path}: missing key '{key}'")
-            continue
-        kwargs[name] = _convert(hints[name], table[name], path, key)
+        kwargs[name] = _convert(hints[name], value, path, key)
     return cls(**kwargs)
 
 

@@ -1,14 +1,15 @@
 """A scene's tables, typed: one frozen dataclass per TOML table, and the Scene they make.
 
 Each field's type is the rule the builder (bwr_twin.config.builder) checks a file's value against;
-its comment gives the unit and meaning. Rules across fields live in bwr_twin.config.rules, physical
-ranges in bwr_twin.config.bounds.
+its comment gives the unit and meaning. A number a scene may leave out takes its value from
+scenes/defaults/scene_defaults.toml, where each has its source; a default here is a choice or "none".
+Rules across fields live in bwr_twin.config.rules, physical ranges in bwr_twin.config.bounds.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -45,11 +46,11 @@ class SimulationSection:
     seed: int
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class EncoderSection:
     resolution: Vec3  # m, rad, rad
     velocity_source: Literal["true", "encoder"] = "true"  # the plant's joint velocity, or estimated
-    velocity_filter: float = 0.05  # s, time constant of the encoder velocity estimate
+    velocity_filter: float  # s, time constant of the encoder velocity estimate
 
 
 @dataclass(frozen=True)
@@ -101,16 +102,16 @@ class Payload:
     pos: Vec3  # m, in that body's frame
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PlantSection:
     """Unmodelled effects: they act on the plant only, never on the controller's belief."""
 
     frictionloss: Vec3 | None = None  # Coulomb friction, N and N m; None keeps the MJCF's
     wind_speed: float = 0.0  # m/s, mean, blowing towards wind_direction
-    wind_direction: float = 90.0  # deg from world +X towards +Y
+    wind_direction: float  # deg from world +X towards +Y
     gust_amplitude: float = 0.0  # m/s, uniform in [-a, a] around the mean
-    gust_hold_time: float = 5.0  # s, how long one gust lasts
-    air_density: float = 1.204  # kg/m^3, dry air at 20 degC
+    gust_hold_time: float  # s, how long one gust lasts
+    air_density: float  # kg/m^3, dry air at 20 degC
     payload: tuple[Payload, ...] = ()  # point masses the plant carries and its MJCF does not show
 
 
@@ -126,12 +127,12 @@ class WindrowSection:
     centre: tuple[float, float]  # m, world X and Y of the crest's centre
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StockpileSection:
     """The pile the wheel digs: a windrow, or a surveyed surface read from a file."""
 
     bulk_density: float  # kg/m^3, of the stockpiled (loose) material
-    grid_spacing: float = 0.25  # m between height samples: a 0.8 m cut spans three
+    grid_spacing: float  # m between height samples
     windrow: WindrowSection | None = None
     surface_file: Path | None = None  # .npz with x, y (grid lines, m) and z (heights, m), or .csv x,y,z points
     # deg: the faces the wheel cuts slump to it, volume kept (bwr_twin.pile.cutting); None: they stand
@@ -141,14 +142,14 @@ class StockpileSection:
     base_depth: float = 1.0  # m of the hfield's base box below the yard floor, as MuJoCo draws it
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DiggingSection:
     """The digging load: the wheel's cutting power P = cutting_energy x Q + idle_power, Q the
     volume it digs a second; the cutting force at the rim is that power over the rim speed."""
 
     cutting_energy: float  # J/m^3 of material dug
     idle_power: float = 0.0  # W, the wheel drive turning empty
-    lateral_ratio: float = 0.4  # force against the slewing, as a share of the tangential force
+    lateral_ratio: float  # force against the slewing, as a share of the tangential force
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,7 @@ class SensingSection:
     rate_signals: Literal["measured", "exact"] | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RateControlSection:
     """`[reclaim.rate_control]`: how the slew speed is trimmed to hold the target rate.
 
@@ -180,17 +181,17 @@ class RateControlSection:
     """
 
     type: str = RATE_CONTROLS.default
-    gain: float = 0.5  # trim per unit of relative rate error
-    integral_time: float = 4.0  # s
-    filter_time: float = 1.0  # s, first-order low-pass on the measured rate
-    trim_limits: tuple[float, float] = (0.5, 2.0)  # the slew speed within these multiples of the law's
+    gain: float  # trim per unit of relative rate error
+    integral_time: float  # s
+    filter_time: float  # s, first-order low-pass on the measured rate
+    trim_limits: tuple[float, float]  # the slew speed within these multiples of the law's
     # "power_and_scale": the memory of the belt scale's correction to the power's calibration
-    calibration_time: float = 300.0  # s
+    calibration_time: float  # s
     # J/m^3 the automation assumes to turn the wheel's power into a rate; None: [digging]'s own
     cutting_energy: float | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class InterlockSection:
     """`[interlock]`: the anti-collision interlock (docs/anticollision.md). `type` "zones", the
     built-in: from each collision shape's clearance to the pile the automation knows, less the
@@ -206,13 +207,13 @@ class InterlockSection:
     warn: float  # m of predicted clearance
     slow: float  # m
     stop: float  # m
-    reaction: float = 0.5  # s from a decision to the drives acting on it
-    deceleration: float = 0.05  # m/s^2 the drives brake the shapes at
-    slow_share: float = 0.3  # of the path's speed, in the slow zone
-    hysteresis: float = 0.5  # m beyond a zone's edge the predicted clearance must reach to leave it
+    reaction: float  # s from a decision to the drives acting on it
+    deceleration: float  # m/s^2 the drives brake the shapes at
+    slow_share: float  # of the path's speed, in the slow zone
+    hysteresis: float  # m beyond a zone's edge the predicted clearance must reach to leave it
     encoder_check: bool = True  # check the encoders against the drives' speed feedback
-    encoder_tolerance: float = 0.2  # m at the shapes the two may part by
-    encoder_window: float = 1.0  # s over which their motions are compared
+    encoder_tolerance: float  # m at the shapes the two may part by
+    encoder_window: float  # s over which their motions are compared
     type: str = INTERLOCKS.default
 
 
@@ -235,7 +236,7 @@ class SurveySection:
     waypoints: tuple[Vec3, ...]  # travel m, slew deg, luff deg
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ReclaimSection:
     """`[reclaim]`: bench reclaiming planned from the pile (bwr_twin.planning.bench), instead
     of [path]'s via points."""
@@ -249,8 +250,8 @@ class ReclaimSection:
     acceleration: Vec3  # m/s^2, deg/s^2, deg/s^2: the most the references ask of each axis
     stop: StopSection
     speed_law: Literal["cosine", "constant"] = "cosine"  # slew speed ~ 1/cos(slew), or constant
-    cap_angle: float = 70.0  # deg: beyond it the cosine law holds its speed
-    rate_control: RateControlSection = field(default_factory=RateControlSection)
+    cap_angle: float  # deg: beyond it the cosine law holds its speed
+    rate_control: RateControlSection
     survey: SurveySection | None = None
 
 
@@ -269,7 +270,7 @@ class GradeSection:
     band: tuple[float, float] | None = None  # the grade the pile's customer accepts, for metrics
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StackingSection:
     """`[stacking]`: the machine stacks a pile instead of following a path or reclaiming one
     (docs/blending.md). It discharges `rate` t/h at its CP (a stacker's discharge point) until
@@ -291,12 +292,12 @@ class StackingSection:
     angle_of_repose: float  # deg
     grade: GradeSection
     pattern: Literal["chevron", "windrow", "cone_shell", "strata"] = "chevron"
-    row_spacing: float = 5.0  # m between the rows of a stratum ("strata" only)
-    drop: float = 2.0  # m from the discharge point down to the crest
-    acceleration: float = 0.05  # m/s^2 of the travel as a pass starts and ends
-    grid_spacing: float = 0.5  # m between the pile's height samples
-    deposit_period: float = 1.0  # s between deposits: laid and slumped this often
-    max_layers: int = 64  # a column's layers (bwr_twin.stockpile.layers)
+    row_spacing: float  # m between the rows of a stratum ("strata" only)
+    drop: float  # m from the discharge point down to the crest
+    acceleration: float  # m/s^2 of the travel as a pass starts and ends
+    grid_spacing: float  # m between the pile's height samples
+    deposit_period: float  # s between deposits: laid and slumped this often
+    max_layers: int  # a column's layers (bwr_twin.stockpile.layers)
 
 
 @dataclass(frozen=True)
@@ -305,7 +306,7 @@ class ScheduleStep:
     q: Vec3  # travel m, slew deg, luff deg
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class NeighbourSection:
     """`[neighbour]`: a second machine on the same rail, from its own MJCF, simulated in the same
     world (docs/anticollision.md). It follows its `schedule`: where it stands at each time, at
@@ -315,11 +316,11 @@ class NeighbourSection:
 
     mjcf: Path
     schedule: tuple[ScheduleStep, ...]
-    bandwidth: float = 0.5  # rad/s of the drives' hold on the schedule
-    report_delay: float = 0.5  # s: the automation hears its position this late (its radio link)
+    bandwidth: float  # rad/s of the drives' hold on the schedule
+    report_delay: float  # s: the automation hears its position this late (its radio link)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Scene:
     path: Path  # the scene file, for messages
     machine: MachineSection
@@ -329,10 +330,10 @@ class Scene:
     controller: ControllerSection
     trajectory: PathSection | None = None  # via points, or
     reclaim: ReclaimSection | None = None  # a bench reclaim planned from the stockpile, or [stacking]
-    plant: PlantSection = field(default_factory=PlantSection)
+    plant: PlantSection
     stockpile: StockpileSection | None = None
     digging: DiggingSection | None = None
-    sensing: SensingSection = field(default_factory=SensingSection)
+    sensing: SensingSection
     faults: tuple[FaultSection, ...] = ()  # [[faults]]: what fails, when, for how long (docs/sensing.md)
     interlock: InterlockSection | None = None  # the anti-collision interlock (docs/anticollision.md)
     neighbour: NeighbourSection | None = None  # a second machine on the rail (docs/anticollision.md)
