@@ -20,6 +20,7 @@ MJCF = Path(str(files("bwr_twin.mjcf")))
 SCENES = Path(str(files("bwr_twin.scenes")))
 RULE_BASES = SCENES / "rulebases"
 SCENE_DEFAULTS = SCENES / "defaults" / "scene_defaults.toml"  # a number a scene leaves out, with its source
+SCENARIOS = SCENES / "scenarios"  # what generated scenarios draw from
 DEFAULT_SCENE = SCENES / "paper_individual_gains.toml"
 
 
@@ -35,5 +36,5 @@ def find_scene(text: str | Path) -> Path:
         if candidate.is_file():
             return candidate
     shipped = ", ".join(sorted(str(p.relative_to(SCENES).with_suffix("")) for p in SCENES.rglob("*.toml")
-                               if p.parent.name not in ("rulebases", "defaults")))
+                               if p.parent.name not in ("rulebases", "defaults", "scenarios")))
     raise SceneError(f"{text}: scene file not found, nor a shipped scene or sweep of that name (shipped: {shipped})")

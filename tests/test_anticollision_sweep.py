@@ -9,10 +9,11 @@ import pytest
 
 from bwr_twin.batch.cli import main as batch
 from bwr_twin.batch.report import SUMMARY_FILE
-from bwr_twin.collision.scenarios import FAULTS, PATHS, REPORT_DELAYS, write_sweeps
+from bwr_twin.collision.scenarios import Draws, write_sweeps
 from bwr_twin.config.sweep import load_sweep
 
 SCHEDULES = 12  # x 3 paths x 2 report delays x 2 fault classes: 144 scenarios a side
+DRAWS = Draws.shipped()
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,7 @@ def test_the_same_seed_draws_the_same_scenarios(sweeps, tmp_path):
     *_, paths = sweeps
     again = write_sweeps(tmp_path, SCHEDULES, seed=7)
     assert [p.read_text() for p in again] == [p.read_text() for p in paths]
-    assert len(load_sweep(again[0]).runs) == SCHEDULES * len(PATHS) * len(REPORT_DELAYS) * len(FAULTS)
+    assert len(load_sweep(again[0]).runs) == SCHEDULES * len(DRAWS.paths) * len(DRAWS.report_delays) * len(DRAWS.faults)
 
 
 def test_without_the_interlock_the_scenarios_collide_and_are_counted(sweeps):
@@ -51,7 +52,7 @@ def test_with_the_interlock_no_scenario_collides(sweeps):
     assert all(row["status"] == "ok" for row in with_.values())
     assert all(int(row["collision.contacts"]) == 0 for row in with_.values())
     assert min(float(row["collision.neighbour_clearance_min_m"]) for row in with_.values()) >= stop
-    for faults in ("[]", FAULTS[1]):  # the interlock stopped scenarios that collide without it, of each class
+    for faults in ("[]", DRAWS.faults[1]):  # the interlock stopped scenarios that collide without it, of each class
         saved = [run for run, row in without.items()
                  if (row["faults"] == "[]") == (faults == "[]") and int(row["collision.contacts"]) > 0]
         assert saved
