@@ -235,3 +235,22 @@ def test_a_machine_without_identification_takes_the_documented_placeholders(tmp_
     assert values["ManufacturerName"] == values["SerialNumber"] == values["YearOfConstruction"] == UNKNOWN
     assert values["ManufacturerProductDesignation"] == "bwr"  # the <mujoco model> name, as OPC UA gives it
     assert check_submodel(nameplate(machine, "urn:test:nameplate"), NAMEPLATE) == []
+
+
+def test_the_heavy_machines_technical_data_lists_its_scanners_and_instruments():
+    from conftest import HEAVY_MJCF
+
+    from bwr_twin.export.aas_elements import Measures
+    from bwr_twin.export.aas_machine import technical_data
+
+    machine = Machine(HEAVY_MJCF)
+    assert machine.scanners and machine.belt_scale is not None and machine.wheel_motor is not None
+    measures = Measures("urn:test:concept")
+    data = technical_data(machine, "urn:test:technical", measures)
+    assert check_submodel(data, TECHNICAL_DATA) == []
+    instruments = data.get_referable("TechnicalProperties").get_referable("Instruments")
+    scanner = machine.scanners[0]
+    assert instruments.get_referable(f"{scanner.name.capitalize()}Range").value == pytest.approx(scanner.max_range)
+    assert instruments.get_referable("WheelMotorVoltage").value == pytest.approx(machine.wheel_motor.voltage)
+    volts = measures.concepts["urn:test:concept:WheelMotorVoltage"].embedded_data_specifications[0]
+    assert volts.data_specification_content.unit_id.key[0].value == "0112/2///62720#UAA296"  # IEC CDD: volt

@@ -46,7 +46,7 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     from basyx.aas import model
     from basyx.aas.adapter import aasx
 
-    from bwr_twin.export.aas_elements import Measures
+    from bwr_twin.export.aas_elements import Measures, id_short
     from bwr_twin.export.aas_fmu import read_fmu
     from bwr_twin.export.aas_machine import nameplate, nameplate_values, technical_data
     from bwr_twin.export.aas_models import control_software, endpoints, simulation_models
@@ -90,7 +90,7 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
         ]
         shell = model.AssetAdministrationShell(
             model.AssetInformation(model.AssetKind.INSTANCE, global_asset_id=uri), shell_id,
-            id_short=_id_short(machine.name), submodel={model.ModelReference.from_referable(s) for s in submodels})
+            id_short=id_short(machine.name), submodel={model.ModelReference.from_referable(s) for s in submodels})
         store = model.DictIdentifiableStore([shell, *submodels, *measures.concepts.values()])
         built = work / "built.aasx"
         with aasx.AASXWriter(built) as writer:
@@ -135,12 +135,6 @@ def _calibration_files(folder: Path) -> list[Path]:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SceneError(f"--calibration {calibration}: not readable JSON ({exc})") from None
     return sorted(path for path in folder.iterdir() if path.is_file() and not path.name.startswith("."))
-
-
-def _id_short(name: str) -> str:
-    from bwr_twin.export.aas_elements import id_short
-
-    return id_short(name)
 
 
 def check_aas(path: Path) -> list[str]:

@@ -5,8 +5,8 @@ built it (FMI 2.0 or 3.0)."""
 
 from __future__ import annotations
 
-import zipfile
 import xml.etree.ElementTree as Et
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 

@@ -43,10 +43,10 @@ def nameplate(machine: Machine, submodel_id: str) -> model.Submodel:
     elements = [prop(t, "URIOfTheProduct", v["URIOfTheProduct"]), text(t, "ManufacturerName", v["ManufacturerName"]),
                 text(t, "ManufacturerProductDesignation", v["ManufacturerProductDesignation"]), contact,
                 text(t, "ManufacturerProductFamily", "bucket wheel reclaimer"),
-                prop(t, "ManufacturerProductType", machine.name), prop(t, "SerialNumber", v["SerialNumber"]),
+                text(t, "ManufacturerProductType", machine.name), prop(t, "SerialNumber", v["SerialNumber"]),
                 prop(t, "YearOfConstruction", v["YearOfConstruction"])]
-    return model.Submodel(submodel_id, id_short="Nameplate", semantic_id=reference(t.semantic_id), submodel_element=elements,
-                          kind=model.ModellingKind.INSTANCE)
+    return model.Submodel(submodel_id, id_short="Nameplate", semantic_id=reference(t.semantic_id),
+                          submodel_element=elements, kind=model.ModellingKind.INSTANCE)
 
 
 def technical_data(machine: Machine, submodel_id: str, measures: Measures) -> model.Submodel:

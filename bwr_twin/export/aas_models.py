@@ -13,7 +13,7 @@ from pathlib import Path
 
 from basyx.aas import model
 
-from bwr_twin.export.aas_elements import collection, file, id_short, prop, reference, text
+from bwr_twin.export.aas_elements import collection, file, prop, reference, text
 from bwr_twin.export.aas_fmu import FmuDescription
 from bwr_twin.export.aas_templates import CONTROL_SOFTWARE, ENDPOINTS, SIMULATION_MODELS
 
@@ -164,5 +164,3 @@ def endpoints(submodel_id: str, endpoint: str, namespace: str, nodeset_path: str
     return model.Submodel(submodel_id, id_short="OperationalDataEndpoints", semantic_id=reference(t.semantic_id),
                           submodel_element=elements, kind=model.ModellingKind.INSTANCE)
 
-
-__all__ = ["control_software", "endpoints", "plc_interface", "simulation_models", "id_short"]
