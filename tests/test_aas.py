@@ -192,6 +192,18 @@ def test_check_fails_on_a_package_missing_a_file_it_points_at(package, tmp_path)
     assert result.returncode == 1 and fmu in result.stderr, result.stderr  # the package names a part it lacks
 
 
+def test_check_fails_on_a_package_that_breaks_the_meta_model(package, tmp_path):
+    broken = tmp_path / "bad_id_short.aasx"
+    with zipfile.ZipFile(package) as source, zipfile.ZipFile(broken, "w") as copy:
+        for item in source.infolist():
+            data = source.read(item.filename)
+            if item.filename == "aasx/data.xml":  # an idShort with a space: AAS constraint AASd-002
+                data = data.replace(b"<aas:idShort>Nameplate</aas:idShort>", b"<aas:idShort>Name plate</aas:idShort>")
+            copy.writestr(item, data)
+    result = python("-m", "bwr_twin.export", "aas", "--check", broken)
+    assert result.returncode == 1 and "AASd-002" in result.stderr and result.stderr.count("\n") == 1, result.stderr
+
+
 @pytest.mark.parametrize("damage", ["not a zip", "truncated"])
 def test_a_corrupt_package_gets_one_line(package, tmp_path, damage):
     bad = tmp_path / "bad.aasx"
@@ -210,6 +222,16 @@ def test_overwrite_follows_ownership_and_no_calibration_leaves_the_entry_out(pac
     assert not [e for e in fmu.value if e.id_short.startswith("RefSimDocumentation")]
     refused = python("-m", "bwr_twin.export", "aas", scene, "--out", out)
     assert refused.returncode == 2 and "already exists" in refused.stderr and refused.stderr.count("\n") == 1
+    before = out.stat().st_ino
+    again = python("-m", "bwr_twin.export", "aas", scene, "--out", out, "--overwrite")
+    assert again.returncode == 0, again.stderr
+    assert out.stat().st_ino != before  # a new package took its name, whole
+    with zipfile.ZipFile(out, "a") as archive:  # the engineer adds a note and keeps the twin's mark
+        comment = archive.comment
+        archive.writestr("aasx/files/notes.txt", "my notes\n")
+        archive.comment = comment
+    refused = python("-m", "bwr_twin.export", "aas", scene, "--out", out, "--overwrite")
+    assert refused.returncode == 2 and "changed since the twin wrote it" in refused.stderr
     foreign = tmp_path / "foreign.aasx"
     foreign.write_bytes(b"the engineer's own")
     refused = python("-m", "bwr_twin.export", "aas", scene, "--out", foreign, "--overwrite")

@@ -158,7 +158,7 @@ def check_aas(path: Path) -> list[str]:
         store, files, _ = compliance_check_aasx.check_deserialization(str(path), manager)
     except Exception as exc:  # noqa: BLE001 - a corrupt package breaks the reader in many ways: each is one line
         raise BwrError(f"--check {path}: not a readable AASX package ({type(exc).__name__}: {exc})") from None
-    problems = [f"{path}: {manager.steps[i].name}: {record.getMessage()}"
+    problems = [f"{path}: {manager.steps[i].name}: {' '.join(record.getMessage().split())}"
                 for i in range(len(manager.steps)) for record in manager.get_error_logs_from_step(i)]
     if manager.status not in (Status.SUCCESS, Status.SUCCESS_WITH_WARNINGS) and not problems:
         problems.append(f"{path}: basyx-compliance-tool: {manager.status.name}")
