@@ -6,8 +6,8 @@ the twin did not write does not hold by chance (`written_by`): the first line of
 .fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER
 *)`; a PNG has a text chunk `Software` of exactly WRITER; an SVG's leading metadata has WRITER as
 its creator, a PDF's document information as its Creator; an HTML export's <head> opens with the
-generator tag; an FMU's or an AASX package's zip archive comment is exactly WRITER; an XML file's line after its
-declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the value of its
+generator tag; an FMU's or an AASX package's zip archive comment is exactly WRITER; an XML file's
+line after its declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the value of its
 moov/udta/meta/ilst/(c)cmt box, where ffmpeg's `-metadata comment=WRITER` puts it) is exactly
 WRITER. Text that merely mentions the writer anywhere else does not count. `check_output` is
 asked before any work starts and again just before anything is replaced, so that a refusal costs

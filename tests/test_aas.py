@@ -161,7 +161,7 @@ def _bytes(files, name) -> bytes:
 def test_the_fmu_read_back_out_is_validated_and_simulated_by_fmpy_in_a_process_of_its_own(package, tmp_path):
     fmu = tmp_path / "from_the_package.fmu"
     with zipfile.ZipFile(package) as archive:
-        fmu.write_bytes(archive.read("aasx/files/reclaimer.fmu"))
+        fmu.write_bytes(archive.read("aasx/files/bwr.fmu"))  # named after the machine
     assert validate_fmu(str(fmu)) == []
     result = python(CHECKS, fmu, "outputs", 20, "Travel.EncoderPosition", cwd=tmp_path)
     assert result.returncode == 0, result.stderr

@@ -8,7 +8,7 @@ with the Eclipse BaSyx Python SDK, and the check of such a package.
             SimulationModels          Provision of Simulation Models, IDTA 02005-1-0: the FMU and the MJCF
             ControlSoftware           the PLC package and its interface table (bwr_twin.export.aas_models)
             OperationalDataEndpoints  the OPC UA endpoint and its NodeSet2
-        /aasx/files/...               the FMU, the MJCF, the PLC files, the NodeSet2, a calibration report
+        /aasx/files/...               the FMU (<model name>.fmu), the MJCF, the PLC files, the NodeSet2, a calibration report
 
 The FMU, the PLC package and the NodeSet2 are made by their own exporters (export_fmu,
 export_plc, the server's address space through bwr_twin.serve.nodeset) and described from the
@@ -57,11 +57,12 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     from bwr_twin.serve.cli import DEFAULT_ENDPOINT
 
     machine = Machine(scene.machine.mjcf)
-    uri = nameplate_values(machine)["URIOfTheProduct"]
-    shell_id = f"urn:bwr_twin:aas:{quote(machine.name, safe='')}:{quote(uri.rsplit(':', 1)[-1], safe='')}"
+    values = nameplate_values(machine)
+    uri = values["URIOfTheProduct"]  # the asset: the product instance the OPC UA server names
+    shell_id = f"urn:bwr_twin:aas:{quote(machine.name, safe='')}:{quote(values['SerialNumber'], safe='')}"
     with tempfile.TemporaryDirectory(prefix="bwr_twin_aas_") as folder:
         work = Path(folder)
-        fmu = export_fmu(scene, work / "reclaimer.fmu")
+        fmu = export_fmu(scene, work / f"{machine.name}.fmu")
         plc = export_plc(scene, work / "plc")
         nodeset = work / "nodeset.xml"
         asyncio.run(_write_nodeset(scene, nodeset))
@@ -97,7 +98,7 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
             writer.write_aas(shell_id, store, files)  # with the concept descriptions its semantic ids name
         with zipfile.ZipFile(built, "a") as archive:
             archive.comment = AAS_WRITER.encode()
-        check_output(out, "aas", overwrite=overwrite, inputs=scene.input_files)  # again, just before replacing
+        check_output(out, "aas", overwrite=overwrite, inputs=(*scene.input_files, *report))  # again, before replacing
         write_atomically(out, lambda partial: shutil.copyfile(built, partial), record=True)
     return out
 

@@ -11,18 +11,21 @@ from __future__ import annotations
 
 import datetime
 
+import mujoco
 import numpy as np
 from basyx.aas import model
 
 from bwr_twin.export.aas_elements import Measures, collection, prop, reference, text
 from bwr_twin.export.aas_templates import NAMEPLATE, TECHNICAL_DATA
-from bwr_twin.model.machine import AXES, Machine
+from bwr_twin.model.machine import AXES, CP_SITES, Machine
 from bwr_twin.serve.machinery import identification_values
 
 UNKNOWN = "unknown"  # what the nameplate says where the MJCF does not (docs/aas.md)
 # Nameplate element -> the MJCF text entry that fills it, beyond the OPC UA identification's.
 NAMEPLATE_TEXTS = {"YearOfConstruction": "year_of_construction", "NationalCode": "manufacturer_country",
                    "CityTown": "manufacturer_city", "Street": "manufacturer_street", "Zipcode": "manufacturer_zipcode"}
+# The kind of machine, by its CP site (bwr_twin.model.machine.CP_SITES): a reclaimer's wheel or a stacker's boom tip.
+PRODUCT_FAMILY = dict(zip(CP_SITES, ("bucket wheel reclaimer", "stacker")))
 AXIS_UNITS = {"travel": ("m/s", "N"), "slew": ("rad/s", "N m"), "luff": ("rad/s", "N m")}
 
 
@@ -42,11 +45,16 @@ def nameplate(machine: Machine, submodel_id: str) -> model.Submodel:
                                                                                           "Street", "Zipcode")))
     elements = [prop(t, "URIOfTheProduct", v["URIOfTheProduct"]), text(t, "ManufacturerName", v["ManufacturerName"]),
                 text(t, "ManufacturerProductDesignation", v["ManufacturerProductDesignation"]), contact,
-                text(t, "ManufacturerProductFamily", "bucket wheel reclaimer"),
+                text(t, "ManufacturerProductFamily", product_family(machine)),
                 text(t, "ManufacturerProductType", machine.name), prop(t, "SerialNumber", v["SerialNumber"]),
                 prop(t, "YearOfConstruction", v["YearOfConstruction"])]
     return model.Submodel(submodel_id, id_short="Nameplate", semantic_id=reference(t.semantic_id),
                           submodel_element=elements, kind=model.ModellingKind.INSTANCE)
+
+
+def product_family(machine: Machine) -> str:
+    """What kind of machine it is, told by its CP site."""
+    return PRODUCT_FAMILY[mujoco.mj_id2name(machine.model, mujoco.mjtObj.mjOBJ_SITE, machine.cp_site)]
 
 
 def technical_data(machine: Machine, submodel_id: str, measures: Measures) -> model.Submodel:
