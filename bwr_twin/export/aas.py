@@ -8,7 +8,7 @@ with the Eclipse BaSyx Python SDK, and the check of such a package.
             SimulationModels          Provision of Simulation Models, IDTA 02005-1-0: the FMU and the MJCF
             ControlSoftware           the PLC package and its interface table (bwr_twin.export.aas_models)
             OperationalDataEndpoints  the OPC UA endpoint and its NodeSet2
-        /aasx/files/...               the FMU (<model name>.fmu), the MJCF, the PLC files, the NodeSet2, a calibration report
+        /aasx/files/...               the FMU (<model name>.fmu), MJCF, PLC files, NodeSet2, calibration report
 
 The FMU, the PLC package and the NodeSet2 are made by their own exporters (export_fmu,
 export_plc, the server's address space through bwr_twin.serve.nodeset) and described from the
