@@ -24,7 +24,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("results",),  # run directories, summaries and figures
     ("run",),  # one scene simulated from the command line
     # the front ends: sweeps, comparison of runs, FMU and PLC export, gym, replay, the OPC UA server
-    ("batch", "compare", "export", "gym", "replay", "serve"),
+    ("batch", "compare", "gym", "replay", "serve"),
+    ("export",),  # FMU, PLC and the Asset Administration Shell, which packs them with what serve serves
     ("tune",),  # gain tuning over batches
     ("bwr_twin",),  # the package itself: what `import bwr_twin` gives
 )

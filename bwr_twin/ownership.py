@@ -6,8 +6,8 @@ the twin did not write does not hold by chance (`written_by`): the first line of
 .fll is exactly `% written by WRITER` or `# written by WRITER`, of an .fcl `(* written by WRITER
 *)`; a PNG has a text chunk `Software` of exactly WRITER; an SVG's leading metadata has WRITER as
 its creator, a PDF's document information as its Creator; an HTML export's <head> opens with the
-generator tag; an FMU's zip archive comment is exactly WRITER; an XML file's line after its
-declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the value of its
+generator tag; an FMU's or an AASX package's zip archive comment is exactly WRITER; an XML file's
+line after its declaration is `<!-- written by WRITER -->`; an MP4 video's comment tag (the value of its
 moov/udta/meta/ilst/(c)cmt box, where ffmpeg's `-metadata comment=WRITER` puts it) is exactly
 WRITER. Text that merely mentions the writer anywhere else does not count. `check_output` is
 asked before any work starts and again just before anything is replaced, so that a refusal costs
@@ -44,11 +44,13 @@ BATCH_LOCK_FILE = ".lock"  # a batch's flock, taken before its folder is marked
 HTML_GENERATOR = '<meta name="generator" content="{}">'  # the first thing in an HTML file's <head>
 HTML_TAG = HTML_GENERATOR.format("bwr_twin.replay")
 FMU_WRITER = "bwr_twin.export fmu"  # an FMU's zip archive comment
+AAS_WRITER = "bwr_twin.export aas"  # an AASX package's zip archive comment
 NODESET_WRITER = "bwr_twin.serve"  # a UA NodeSet2 file's comment after the XML declaration
 VIDEO_WRITER = "bwr_twin.replay video"  # an MP4's comment tag
 # The single files the twin writes, by kind of output: (suffix, what marks them as the twin's,
 # whether replacing one needs --overwrite).
 _FILE_KINDS = {"export": (".html", "bwr_twin.replay", False), "fmu": (".fmu", FMU_WRITER, True),
+               "aas": (".aasx", AAS_WRITER, True),
                "nodeset": (".xml", NODESET_WRITER, True), "video": (".mp4", VIDEO_WRITER, False)}
 _HEAD_WITHIN = 4096  # bytes from the start of a file where its mark sits (all but a PDF's)
 COMMENT_SIGNS = {".fis": "%", ".toml": "#", ".fll": "#", ".fcl": "(*"}  # the text files the twin writes, by suffix
@@ -74,7 +76,7 @@ def written_by(path: Path, writer: str, *, suffix: str | None = None) -> bool:
     """Whether the file `path` holds `writer`'s mark in its place (see the module's docstring);
     `suffix` tells the kind of file where its name does not (a temporary name)."""
     suffix = (suffix or path.suffix).lower()
-    if suffix == ".fmu":
+    if suffix in (".fmu", ".aasx"):
         return _zip_comment(path) == writer.encode()
     if suffix == ".xml":
         return _xml_comment(path) == writer.encode()

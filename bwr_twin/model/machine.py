@@ -41,8 +41,10 @@ WHEEL_BENCH_SHARE_KEY = "wheel_bench_share"
 WHEEL_CLEARANCE_KEY = "wheel_clearance"
 RAIL_CLEARANCE_KEY = "rail_clearance"
 RATED_SPEED_KEY = "rated_speed_{axis}"  # optional: without it, an axis has no rated speed (inf)
-# Optional `<custom><text>` entries naming the machine, as OPC 40001-1 identifies one (bwr_twin.serve).
-IDENTIFICATION_KEYS = ("manufacturer", "model", "serial_number")
+# Optional `<custom><text>` entries naming the machine, as OPC 40001-1 identifies one (bwr_twin.serve), and
+# the rest of its nameplate, as the Asset Administration Shell's Digital Nameplate holds it (bwr_twin.export aas).
+IDENTIFICATION_KEYS = ("manufacturer", "model", "serial_number", "year_of_construction", "manufacturer_country",
+                       "manufacturer_city", "manufacturer_street", "manufacturer_zipcode")
 # Axis of each joint in world coordinates at q = 0: rail +X, slew +Z, luff -Y (raising the CP).
 CONTRACT_AXES = {"travel": (1.0, 0.0, 0.0), "slew": (0.0, 0.0, 1.0), "luff": (0.0, -1.0, 0.0)}
 _TOL = 1e-9
