@@ -4,12 +4,12 @@ The package is built in layers (bwr_twin.layers), lowest first; each imports onl
 the layers before it:
 
     errors; units, values, textfile, signals, progress, arguments, exposure, shipped, ownership,
-    streams -> arrays (files checked) -> model (MJCF machine, kinematics, its parts)
+    streams -> arrays, tomlfile (files checked) -> model (MJCF machine, kinematics, its parts)
     -> control (control laws, rule base)
     -> fis (.fis files) -> config (scene and sweep files, plug-ins) -> pile (the pile's shape)
     -> planning (trajectory, bench and stacking plans) -> stockpile (material, digging, stacking)
     -> sensing, collision -> sim (plant, the lockstep loop and its stages, twin) -> results (run directories,
-    plots) -> run -> batch, compare, export, gym, replay, serve -> tune
+    plots) -> run -> batch, compare, gym, replay, serve -> export (FMU, PLC, AAS) -> tune
 """
 
 from bwr_twin.errors import (
