@@ -15,7 +15,6 @@ import os
 import re
 import subprocess
 import sys
-import time
 import zipfile
 from pathlib import Path
 
@@ -153,14 +152,13 @@ def test_a_run_history_whose_frames_index_beyond_the_grid_is_refused(tmp_path):
 
 
 def test_a_tiny_npz_claiming_a_huge_array_is_refused_by_its_header(tmp_path):
-    """A few hundred bytes claiming 8e12 bytes: refused from the header, nothing allocated."""
+    """A few hundred bytes claiming 8e12 bytes: refused from the header, nothing allocated (the
+    member holds no data behind its header: reading it would fail otherwise)."""
     bomb = npz_claiming(tmp_path / "bomb.npz", "z", (1_000_000, 1_000_000))
     assert bomb.stat().st_size < 1000
-    started = time.perf_counter()
     with pytest.raises(BwrError, match=r"bomb.npz: array 'z' of shape \(1000000, 1000000\) \(float64\) would take "
                                        r"8,000,000,000,000 bytes, more than the 1,073,741,824 it may take"):
         load_npz(bomb, {"z": Member()}, what=str(bomb))
-    assert time.perf_counter() - started < 0.1
     grid = survey()
     with zipfile.ZipFile(bomb, "a") as archive:
         for key in "xy":
@@ -211,14 +209,12 @@ def test_an_object_array_is_refused_as_such(tmp_path):
 
 def test_a_survey_past_the_row_cap_is_refused_while_it_is_read(tmp_path):
     """MAX_SURVEY_POINTS points and a header are read; one more line is refused, naming the cap,
-    before a number is parsed."""
+    before a number is parsed: the malformed row beyond the cap is never reached."""
     rows = MAX_SURVEY_POINTS + 2
-    (tmp_path / "cloud.csv").write_bytes(b"x,y,z\n" + b"1,2,3\n" * (rows - 1))
-    started = time.perf_counter()
+    (tmp_path / "cloud.csv").write_bytes(b"x,y,z\n" + b"1,2,3\n" * (rows - 1) + b"not,a,row\n")
     with pytest.raises(SceneError, match=r"cloud.csv: more than 1,000,001 lines, the most it may hold: a survey of at "
                                          r"most 1,000,000 points and a header \(thin the cloud\)"):
         build_surface(StockpileSection(bulk_density=2400.0, grid_spacing=0.5, surface_file=tmp_path / "cloud.csv"), tmp_path)
-    assert time.perf_counter() - started < 1.0
 
 
 def test_a_time_series_past_the_row_cap_is_refused(tmp_path, monkeypatch):

@@ -1044,8 +1044,10 @@ def test_password_checks_leave_the_server_responsive_and_sigterm_stops_it(short_
         answered, stopped_in = asyncio.run(asyncio.wait_for(session(), CALL_TIMEOUT))
     finally:
         status = server.stop()
-    assert answered < 0.3, f"a read took {answered:.2f} s during the password checks"
-    assert status == 0 and stopped_in < 5.0, (status, stopped_in, server.stderr)
+    # Four checks one at a time hold a blocked loop for over 2 s; a loop that hands them to a
+    # thread answers the read between them, well within one check's time.
+    assert answered < 1.0, f"a read took {answered:.2f} s during the password checks"
+    assert status == 0 and stopped_in < 10, (status, stopped_in, server.stderr)  # stopped, not killed at 10 s
     assert "Traceback" not in server.stderr, server.stderr
 
 
