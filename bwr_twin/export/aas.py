@@ -62,8 +62,8 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     shell_id = f"urn:bwr_twin:aas:{quote(machine.name, safe='')}:{quote(values['SerialNumber'], safe='')}"
     with tempfile.TemporaryDirectory(prefix="bwr_twin_aas_") as folder:
         work = Path(folder)
+        plc = export_plc(scene, work / "plc")  # first: a controller it cannot export is refused before the FMU's build
         fmu = export_fmu(scene, work / f"{machine.name}.fmu")
-        plc = export_plc(scene, work / "plc")
         nodeset = work / "nodeset.xml"
         asyncio.run(_write_nodeset(scene, nodeset))
         files = aasx.DictSupplementaryFileContainer()
