@@ -6,7 +6,6 @@ argument, and a node-opcua client that browses, steps and subscribes against `se
 from __future__ import annotations
 
 import subprocess
-import time
 
 import pytest
 from conftest import ROOT, write_short_scene
@@ -78,3 +77,24 @@ def test_node_opcua_loads_every_unit_range_and_argument_of_the_nodeset(nodeset, 
     step = loaded["methods"]["s=Reclaimer.Step"]
     assert [(a["name"], a["dataType"], a["valueRank"]) for a in step["inputArguments"]] == [("n", "ns=0;i=7", -1)]
     assert [(a["name"], a["dataType"]) for a in step["outputArguments"]] == [("SimTime", "ns=0;i=11")]
+
+
+def test_a_node_opcua_client_browses_steps_and_sees_its_subscription_move(short_scene, node_opcua, tmp_path):
+    server = Launched(short_scene)
+    try:
+        seen = run_script(node_opcua, "client.js", server.ready(), NAMESPACE_URI, str(node_opcua.parent / "pki"),
+                          out=tmp_path / "client.json")
+    finally:
+        status = server.stop()
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+
+    assert {"SimTime", "PeriodsLeft", "Travel", "Slew", "Luff", "Step", "Reset"} <= set(seen["reclaimerChildren"])
+    assert "DriveSetpoint" in seen["travelChildren"] and "EncoderPosition" in seen["travelChildren"]
+    assert seen["units"]["displayName"]["text"] == "m" and seen["range"]["low"] < 0 < seen["range"]["high"]
+    assert seen["reset"] == "Good" and seen["writes"] == ["Good"] * 3
+    assert [step["status"] for step in seen["steps"]] == ["Good"] * 3
+    assert [step["simTime"][0] for step in seen["steps"]] == pytest.approx([0.01, 0.11, 1.11])  # 1, 10, 100 periods
+    assert seen["stepWithoutArgument"] == "BadArgumentsMissing"
+    # The subscription saw SimTime reach each Step's end (a publication per Step), and the reference move.
+    assert seen["notified"]["SimTime"][-1] == pytest.approx(1.11)
+    assert len(set(seen["notified"]["SimTime"])) >= 2 and len(set(seen["notified"]["ReferencePosition"])) >= 2
