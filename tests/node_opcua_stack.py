@@ -59,10 +59,13 @@ def install() -> tuple[Path, float]:
     return target / "node_modules", time.monotonic() - started
 
 
-def run_script(modules: Path, script: str, *arguments: str, out: Path, timeout: float = SCRIPT_TIMEOUT) -> dict:
-    """Run tests/node_opcua/`script` with node on `arguments`; the JSON it wrote to `out`."""
+def run_script(modules: Path, script: str, *arguments: str, out: Path, environment: dict | None = None,
+               timeout: float = SCRIPT_TIMEOUT) -> dict:
+    """Run tests/node_opcua/`script` with node on `arguments` (and `environment` added); the JSON
+    it wrote to `out`."""
     done = subprocess.run(["node", str(HERE / script), *arguments, str(out)], cwd=HERE,
-                          env={**os.environ, "NODE_PATH": str(modules)}, capture_output=True, text=True,
+                          env={**os.environ, **(environment or {}), "NODE_PATH": str(modules)}, capture_output=True,
+                          text=True,
                           timeout=timeout)
     assert done.returncode == 0, f"node {script}: {done.returncode}\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     return json.loads(out.read_text())

@@ -98,3 +98,29 @@ def test_a_node_opcua_client_browses_steps_and_sees_its_subscription_move(short_
     # The subscription saw SimTime reach each Step's end (a publication per Step), and the reference move.
     assert seen["notified"]["SimTime"][-1] == pytest.approx(1.11)
     assert len(set(seen["notified"]["SimTime"])) >= 2 and len(set(seen["notified"]["ReferencePosition"])) >= 2
+
+
+def test_node_opcua_logs_in_with_an_encrypted_password_and_reads_what_each_session_may_do(short_scene, node_opcua,
+                                                                                          tmp_path):
+    """On the secured endpoint node-opcua finds the UserName token policy naming Basic256Sha256, so
+    it encrypts the password (asyncua decrypts it); an anonymous session reads no write access
+    and Step not executable, and is refused Step; the user steps."""
+    from test_serve import PASSWORD, USER, certificate_pair
+
+    from bwr_twin.serve.security import hash_password
+
+    users = tmp_path / "users.txt"
+    users.write_text(f"{USER}:{hash_password(PASSWORD)}\n")
+    cert, key = certificate_pair(tmp_path, "server")
+    server = Launched(short_scene, "--users", str(users), "--certificate", str(cert), "--private-key", str(key))
+    try:
+        seen = run_script(node_opcua, "login.js", server.ready(), NAMESPACE_URI, USER, str(node_opcua.parent / "pki"),
+                          out=tmp_path / "login.json", environment={"BWR_PASSWORD": PASSWORD})
+    finally:
+        status = server.stop()
+    assert status == 0 and "Traceback" not in server.stderr, server.stderr
+
+    basic256sha256 = "http://opcfoundation.org/UA/SecurityPolicy#Basic256Sha256"
+    assert seen["tokens"] == [{"endpoint": basic256sha256, "token": basic256sha256}]
+    assert seen["anonymous"] == {"userAccessLevel": 1, "userExecutable": False, "step": "BadUserAccessDenied"}
+    assert seen["user"] == {"userAccessLevel": 3, "userExecutable": True, "step": "Good"}
