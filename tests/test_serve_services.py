@@ -186,7 +186,16 @@ def test_an_anonymous_session_reads_what_it_may_do_and_users_log_in_encrypted(se
             found = (await setpoint.read_attribute(ua.AttributeIds.UserAccessLevel)).Value.Value, (
                 await step.read_attribute(ua.AttributeIds.UserExecutable)).Value.Value
             endpoints = await connection.get_endpoints()
-            return found, endpoints
+            # ConditionRefresh is anyone's: a SCADA that only watches asks for the active alarms again.
+            refresh = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh))
+            events = AlarmEvents()
+            subscription = await connection.create_subscription(20, events)
+            await subscription.subscribe_events(connection.nodes.server, ua.ObjectIds.OffNormalAlarmType)
+            await connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType)).call_method(
+                refresh, ua.Variant(subscription.subscription_id, ua.VariantType.UInt32))
+            bracket = [(await events.next())["EventType"], (await events.next())["EventType"]]
+            refreshes = (await refresh.read_attribute(ua.AttributeIds.UserExecutable)).Value.Value, bracket
+            return (*found, refreshes), endpoints
 
     async def sessions():
         anonymous, endpoints = await rights(None)
@@ -195,7 +204,8 @@ def test_an_anonymous_session_reads_what_it_may_do_and_users_log_in_encrypted(se
 
     anonymous, user, endpoints = run(sessions())
     read, write = ua.AccessLevel.CurrentRead.mask, ua.AccessLevel.CurrentWrite.mask
-    assert anonymous == (read, False) and user == (read | write, True)
+    bracket = [ua.NodeId(ua.ObjectIds.RefreshStartEventType), ua.NodeId(ua.ObjectIds.RefreshEndEventType)]
+    assert anonymous == (read, False, (True, bracket)) and user == (read | write, True, (True, bracket))
     tokens = [(e.SecurityPolicyUri, t.SecurityPolicyUri) for e in endpoints for t in e.UserIdentityTokens
               if t.TokenType == ua.UserTokenType.UserName]
     assert tokens == [("http://opcfoundation.org/UA/SecurityPolicy#Basic256Sha256",) * 2]

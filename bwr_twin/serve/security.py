@@ -22,6 +22,7 @@ from asyncua import ua
 from asyncua.common.callback import CallbackType
 from asyncua.crypto.permission_rules import USER_TYPES, PermissionRuleset, User, UserRole
 from asyncua.server.user_managers import UserManager
+from asyncua.ua.ua_binary import struct_from_binary
 
 from bwr_twin.errors import BwrError
 from bwr_twin.textfile import read_text
@@ -153,17 +154,23 @@ class Users(UserManager):
 _WRITE, _CALL = (ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary),
                  ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary))
 _WRITES = {_WRITE, _CALL}
+# What any session may call, anonymous included: a SCADA that only watches must still be able to
+# ask for the active alarms again (Part 9's ConditionRefresh, bwr_twin.serve.alarms).
+ANYONE_CALLS = {ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh),
+                ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh2)}
 
 
 class ReadOnlyAnonymous(PermissionRuleset):
     """Users may do what a client does (never change the address space); anonymous sessions all
-    of it but writing and calling methods."""
+    of it but writing and calling methods, ConditionRefresh excepted (ANYONE_CALLS)."""
 
     def __init__(self):
         allowed = {ua.NodeId(t) for t in USER_TYPES}
         self._allowed = {UserRole.Admin: allowed, UserRole.User: allowed, UserRole.Anonymous: allowed - _WRITES}
 
     def check_validity(self, user, action_type_id, body) -> bool:
+        if action_type_id == _CALL and action_type_id not in self._allowed[user.role] and body is not None:
+            return _calls_only(body.copy(), ANYONE_CALLS)
         return action_type_id in self._allowed[user.role]
 
     async def tell_user_access(self, event, dispatcher=None) -> None:
@@ -181,8 +188,18 @@ class ReadOnlyAnonymous(PermissionRuleset):
             if read.AttributeId == ua.AttributeIds.UserAccessLevel and not may_write:
                 level = found.Value.Value & ~ua.AccessLevel.CurrentWrite.mask
                 results[index] = dataclasses.replace(found, Value=ua.Variant(level, ua.VariantType.Byte))
-            elif read.AttributeId == ua.AttributeIds.UserExecutable and not may_call:
+            elif (read.AttributeId == ua.AttributeIds.UserExecutable and not may_call
+                  and read.NodeId not in ANYONE_CALLS):
                 results[index] = dataclasses.replace(found, Value=ua.Variant(False, ua.VariantType.Boolean))
+
+
+def _calls_only(body, methods: set[ua.NodeId]) -> bool:
+    """True if the Call request in `body` calls only `methods` (a request that does not parse: False)."""
+    try:
+        calls = struct_from_binary(ua.CallParameters, body).MethodsToCall
+    except Exception:  # noqa: BLE001 - a malformed request is refused, as before
+        return False
+    return bool(calls) and all(call.MethodId in methods for call in calls)
 
 
 def encrypt_user_names(server) -> None:
