@@ -10,8 +10,18 @@ import signal
 
 import pytest
 from asyncua import ua
-from test_serve import (LIMIT_PERIODS, LUFF_PUSH, PASSWORD, USER, AlarmEvents, Launched, Plc, certificate_pair,
-                        client, run)
+from test_serve import (
+    LIMIT_PERIODS,
+    LUFF_PUSH,
+    PASSWORD,
+    USER,
+    AlarmEvents,
+    Launched,
+    Plc,
+    certificate_pair,
+    client,
+    run,
+)
 
 from bwr_twin.serve.security import hash_password
 
@@ -103,11 +113,10 @@ def test_a_write_of_several_nodes_answers_and_applies_each_on_its_own(servers):
             plc = await Plc.attach(connection)
             await plc.call("Reset")
             setpoints = plc.axis["DriveSetpoint"]
-            values = [ua.Variant(1.0, ua.VariantType.Double), ua.Variant(float("nan"), ua.VariantType.Double),
-                      ua.Variant(3, ua.VariantType.Int64), ua.Variant(4.0, ua.VariantType.Double)]
+            # travel good, slew NaN, luff an integer, then a node that is not writable
             nodes = [*setpoints, plc.axis["EncoderPosition"][0]]
-            values.append(ua.Variant(5.0, ua.VariantType.Double))
-            del values[3]
+            values = [ua.Variant(1.0, ua.VariantType.Double), ua.Variant(float("nan"), ua.VariantType.Double),
+                      ua.Variant(3, ua.VariantType.Int64), ua.Variant(5.0, ua.VariantType.Double)]
             items = [ua.WriteValue(NodeId=n.nodeid, AttributeId=ua.AttributeIds.Value, Value=ua.DataValue(v))
                      for n, v in zip(nodes, values)]
             results = await connection.uaclient.write(ua.WriteParameters(NodesToWrite=items))
