@@ -76,7 +76,10 @@ class Alarms:
         return alarms
 
     async def refresh(self, parent, subscription: ua.Variant, monitored_item: ua.Variant | None = None):
-        """ConditionRefresh(SubscriptionId), ConditionRefresh2(SubscriptionId, MonitoredItemId)."""
+        """ConditionRefresh(SubscriptionId), ConditionRefresh2(SubscriptionId, MonitoredItemId).
+
+        The subscription's event items are read from asyncua's monitored item service, as its own
+        (unbound) ConditionRefresh reads them: asyncua offers no public way to reach one item."""
         found = self._subscriptions.subscriptions.get(subscription.Value)
         if found is None:
             return status(ua.StatusCodes.BadSubscriptionIdInvalid)
