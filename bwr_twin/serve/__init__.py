@@ -5,12 +5,14 @@ EURange bwr_twin.sim.ranges (from the MJCF or a documented rule); the FMU serves
 
     address_space.py  Objects/Reclaimer/...: variables, units, methods, publishing
     machinery.py      OPC 40001-1: Objects/Machines, Identification, MachineryItemState, operation mode
-    alarms.py         limit switches and watchdog trips as alarm events on Objects/Reclaimer
+    alarms.py         limit switches and watchdog trips as alarm events on Objects/Reclaimer; ConditionRefresh
     sensing.py        the scanners' latest profiles and the faults' states, where the run has them
     nodes.py          typed nodes with the twin's node ids, which asyncua's shortcuts do not make
     nodeset.py        --nodeset: the address space as a UA NodeSet2 file
-    clock.py          lockstep and real-time modes, setpoints, watchdog, overruns
-    security.py       users file, password hashes, who may write; policies per endpoint
+    clock.py          lockstep and real-time modes, setpoints, watchdog, overruns, the path's last period
+    methods.py        method calls checked as Part 4 says: the object, the arguments' number and types
+    writes.py         a Write answered and applied node by node
+    security.py       users file, password hashes, who may write (and reads so); policies per endpoint
     user_certificates.py  --user-certificates: users who log in with an X.509 certificate
     logins.py         password checks in a worker thread, before asyncua activates a session
     certificates.py   the certificate and key checked at start: a pair, naming the application URI

@@ -20,6 +20,7 @@ from asyncua import Node, Server, ua
 
 from bwr_twin.model.machine import AXES
 from bwr_twin.serve import nodes
+from bwr_twin.serve.methods import checked
 
 NAMESPACE_URI = "urn:bwr_twin:reclaimer"
 UNECE_URI = "http://www.opcfoundation.org/UA/units/un/cefact"  # OPC UA Part 8: UNECE Recommendation 20 codes
@@ -182,6 +183,7 @@ class AddressSpace:
                                Description=ua.LocalizedText("simulated time after the step, s"))
         for name, handler in methods.items():
             inputs, outputs = ([step_argument], [sim_time]) if name == "Step" else ([], [])
+            handler = checked(handler, [ua.VariantType(a.DataType.Identifier) for a in inputs], reclaimer.nodeid)
             node = await reclaimer.add_method(ua.NodeId(f"Reclaimer.{name}", ns), ua.QualifiedName(name, ns),
                                               handler, inputs, outputs)
             await node.write_attribute(ua.AttributeIds.Description,

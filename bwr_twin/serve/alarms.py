@@ -3,13 +3,20 @@ limit switch that closes and opens again (OffNormalAlarmType, one condition per 
 watchdog's trip and its clearing by Reset (TripAlarmType).
 
 Each change of a condition is one event of its type, with the condition's fields as OPC UA
-Part 9 gives them (ConditionId, ActiveState, Retain, Severity, SourceNode, InputNode, Message);
-a retained condition is sent again on ConditionRefresh. The conditions are not nodes of the
-address space (Part 9 allows that): they need no acknowledgement, and arrive acknowledged.
+Part 9 gives them (ConditionId, ActiveState, Retain, Severity, SourceNode, InputNode, Message).
+The conditions are not nodes of the address space (Part 9 allows that): they need no
+acknowledgement, and arrive acknowledged.
+
+ConditionRefresh and ConditionRefresh2 (Part 9, 5.5.7 and 5.5.8; called on ConditionType) are
+served here, not by asyncua: a RefreshStartEvent to every event monitored item of the
+subscription (or the one named), whatever its filter, then each active condition again, as its
+last event (its Retain true), to the monitored items of the Reclaimer or the Server object whose
+filter it meets, then a RefreshEndEvent as the start went.
 """
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Mapping
 from datetime import datetime, timezone
 
@@ -18,6 +25,7 @@ from asyncua.server.event_generator import EventGenerator
 
 from bwr_twin.model.machine import AXES
 from bwr_twin.serve.address_space import AddressSpace, axis_name
+from bwr_twin.serve.methods import checked, status
 
 # OPC UA severities run 1-1000; 601-800 is medium-high, 801-1000 high.
 LIMIT_SEVERITY = 700  # a joint reached its envelope or end stop: the PLC should stop pushing it
@@ -35,6 +43,7 @@ class Alarms:
         self._conditions = conditions  # (input variable, axis or None) -> the condition's event generator
         self._active = {key: False for key in conditions}
         self._subscriptions = subscriptions  # asyncua's: events go to the Server object's subscribers too
+        self._brackets: dict[int, object] = {}  # RefreshStartEventType, RefreshEndEventType -> the event sent
 
     @classmethod
     async def build(cls, space: AddressSpace) -> Alarms:
@@ -54,7 +63,56 @@ class Alarms:
             space, ua.ObjectIds.TripAlarmType, first=True, source=reclaimer,
             input_node=space.nodes["WatchdogTripped", None], condition="Reclaimer.WatchdogAlarm",
             name="WatchdogAlarm", severity=WATCHDOG_SEVERITY, condition_class=(SYSTEM_CLASS, "System"))
-        return cls(space, conditions, server.iserver.isession.subscription_service)
+        alarms = cls(space, conditions, server.iserver.isession.subscription_service)
+        for event_type in (ua.ObjectIds.RefreshStartEventType, ua.ObjectIds.RefreshEndEventType):
+            bracket = EventGenerator(server.iserver.isession)
+            await bracket.init(event_type, add_generates_event=False)  # from the Server object
+            alarms._brackets[event_type] = bracket.event
+        condition_type, integer_id = ua.NodeId(ua.ObjectIds.ConditionType), ua.VariantType.UInt32
+        for method, inputs in ((ua.ObjectIds.ConditionType_ConditionRefresh, [integer_id]),
+                               (ua.ObjectIds.ConditionType_ConditionRefresh2, [integer_id, integer_id])):
+            server.iserver.isession.add_method_callback(ua.NodeId(method),
+                                                        checked(alarms.refresh, inputs, condition_type))
+        return alarms
+
+    async def refresh(self, parent, subscription: ua.Variant, monitored_item: ua.Variant | None = None):
+        """ConditionRefresh(SubscriptionId), ConditionRefresh2(SubscriptionId, MonitoredItemId).
+
+        The subscription's event items are read from asyncua's monitored item service, as its own
+        (unbound) ConditionRefresh reads them: asyncua offers no public way to reach one item."""
+        found = self._subscriptions.subscriptions.get(subscription.Value)
+        if found is None:
+            return status(ua.StatusCodes.BadSubscriptionIdInvalid)
+        items = found.monitored_item_srv
+        notifiers = {mid: node for node, mids in items._monitored_events.items() for mid in mids}
+        if monitored_item is not None:
+            if monitored_item.Value not in notifiers:
+                return status(ua.StatusCodes.BadMonitoredItemIdInvalid)
+            notifiers = {monitored_item.Value: notifiers[monitored_item.Value]}
+        if not notifiers:
+            return status(ua.StatusCodes.BadNothingToDo)
+        sources = {self.space.objects[None].nodeid, ua.NodeId(ua.ObjectIds.Server)}
+        await self._bracket(items, notifiers, ua.ObjectIds.RefreshStartEventType)
+        for key, active in self._active.items():
+            if active:
+                event = self._conditions[key].event
+                for mid, node in notifiers.items():
+                    if node in sources:
+                        await items._trigger_event(event, mid)  # only where the item's filter takes it
+        await self._bracket(items, notifiers, ua.ObjectIds.RefreshEndEventType)
+        return []
+
+    async def _bracket(self, items, notifiers: Mapping[int, ua.NodeId], event_type: int) -> None:
+        """One RefreshStart or RefreshEnd event, a copy to each monitored item, past its filter."""
+        event, now = self._brackets[event_type], datetime.now(timezone.utc)
+        event.EventId, event.Time, event.ReceiveTime = uuid.uuid4().bytes, now, now
+        event.Message = ua.LocalizedText("ConditionRefresh " + ("started" if event_type ==
+                                                                ua.ObjectIds.RefreshStartEventType else "ended"))
+        for mid in notifiers:
+            item = items._monitored_items[mid]
+            fields = ua.EventFieldList(ClientHandle=item.client_handle,
+                                       EventFields=event.to_event_fields(item.filter.SelectClauses))
+            await items.isub.enqueue_event(mid, fields, item.queue_size)
 
     async def publish(self, readings: Mapping[str, object]) -> None:
         """Raise or clear the conditions that `readings` change: each limit switch that changed

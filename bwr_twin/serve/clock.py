@@ -1,6 +1,11 @@
 """When the twin's control periods pass: on the client's `Step(n)` (lockstep mode) or on the wall
 clock (real-time mode), with the drive setpoints, the watchdog and the methods that steer it.
 
+A path of duration T at period h is T / h control periods to a client (`PeriodsLeft`, the start
+text): the one that brings SimTime to T is its last. The twin's run has one more, the period
+that starts at T (bwr_twin.sim.lockstep, as every run of the scene): it is advanced with that
+last one, under the same setpoints, so that the run is complete when SimTime reads T.
+
 The physics runs in the server's event loop, a period at a time (about 0.1 ms for one run on
 this machine, docs/opcua.md): a Step of many periods gives the loop a turn every
 `YIELD_AFTER` seconds of computing, so that the server keeps answering other clients.
@@ -20,15 +25,12 @@ from asyncua import ua
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
 from bwr_twin.serve.address_space import AddressSpace
 from bwr_twin.serve.machinery import item_state
+from bwr_twin.serve.methods import refuse_argument, status
 from bwr_twin.sim.twin import Twin
 
 YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a turn (real time: a pause as long)
 
 Log = Callable[[str], None]
-
-
-def _status(code: int) -> ua.StatusCode:
-    return ua.StatusCode(code)
 
 
 class Clock:
@@ -68,8 +70,26 @@ class Clock:
         twin = self.twin
         state = item_state(mode=self.mode, running=self.running, started=twin.k > 0, done=twin.done,
                            diverged=twin.failure is not None, tripped=self.watchdog_tripped)
-        return {**twin.reading, "ControlPeriod": twin.period, "Running": self.running, "Mode": self.mode,
+        return {**twin.reading, "PeriodsLeft": self.periods_left, "ControlPeriod": twin.period,
+                "Running": self.running, "Mode": self.mode,
                 "WatchdogTripped": self.watchdog_tripped, "Overruns": self.overruns, "MachineryItemState": state}
+
+    @property
+    def path_periods(self) -> int:
+        """The control periods from SimTime 0 to the path's end (of a bench plan, the most it may take)."""
+        return self.twin.samples - 1
+
+    @property
+    def periods_left(self) -> int:
+        """The control periods until SimTime reads the path's end; 0 there."""
+        return max(self.twin.periods_left - 1, 0)
+
+    def _advance(self, setpoint: np.ndarray) -> None:
+        """One control period; the one that brings SimTime to the path's end completes the run."""
+        twin = self.twin
+        twin.advance(setpoint)
+        if twin.periods_left == 1 and twin.failure is None:
+            twin.advance(setpoint)  # the run's period that starts at the end: nothing a client reads
 
     async def publish(self, *, setpoint: bool = False) -> None:
         """Publish the readings, with the limit switches that changed since the last time; with
@@ -92,7 +112,7 @@ class Clock:
             if not self._internal_write:
                 value = data_value.Value.Value
                 if not isinstance(value, float) or not math.isfinite(value):
-                    raise ua.uaerrors.BadOutOfRange  # the whole Write answers with it
+                    raise ua.uaerrors.BadOutOfRange  # this node's result (bwr_twin.serve.writes)
                 if self.watchdog_tripped:
                     raise ua.uaerrors.BadInvalidState  # latched until Reset, as a drive's fault
                 self.setpoint[axis] = value
@@ -108,11 +128,12 @@ class Clock:
 
     async def start(self, parent=None):
         if self.mode != REALTIME:
-            return _status(ua.StatusCodes.BadNotSupported)
+            return status(ua.StatusCodes.BadNotSupported)
+        # Tripped, the clock may still run (at zero drive force): Start does not clear a trip, Reset does.
+        if self._finished() or self.watchdog_tripped or self._lock.locked():  # the last: a Step under way
+            return status(ua.StatusCodes.BadInvalidState)
         if self.running:
             return []
-        if self._finished() or self.watchdog_tripped or self._lock.locked():  # the last: a Step under way
-            return _status(ua.StatusCodes.BadInvalidState)
         self.running = True
         self._task = asyncio.create_task(self._run())
         await self.publish()
@@ -120,7 +141,7 @@ class Clock:
 
     async def stop(self, parent=None):
         if self.mode != REALTIME:
-            return _status(ua.StatusCodes.BadNotSupported)
+            return status(ua.StatusCodes.BadNotSupported)
         await self._stop_task()
         await self.publish()
         return []
@@ -135,18 +156,18 @@ class Clock:
 
     async def step(self, parent, periods: ua.Variant):
         """Step(n): n control periods under the setpoints as they are now; SimTime after them."""
-        n = periods.Value
-        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-            return _status(ua.StatusCodes.BadInvalidArgument)
+        n = periods.Value  # a UInt32 (bwr_twin.serve.methods checked its type)
+        if n < 1:
+            return refuse_argument([ua.StatusCodes.BadOutOfRange])
         if self.running:
-            return _status(ua.StatusCodes.BadInvalidState)
+            return status(ua.StatusCodes.BadInvalidState)
         async with self._lock:
-            if self._finished() or n > self.twin.periods_left:
-                return _status(ua.StatusCodes.BadInvalidState)
+            if self._finished() or n > self.periods_left:
+                return status(ua.StatusCodes.BadInvalidState)
             setpoint = self.setpoint.copy()  # a write during the Step counts from the next one
             computed_since = time.perf_counter()
             for _ in range(n):
-                self.twin.advance(setpoint)
+                self._advance(setpoint)
                 if time.perf_counter() - computed_since > YIELD_AFTER:
                     await asyncio.sleep(0)
                     computed_since = time.perf_counter()
@@ -184,7 +205,7 @@ class Clock:
                 await asyncio.sleep(0)
             if self.watchdog_periods and twin.k - self._fed_at >= self.watchdog_periods:
                 await self._trip()
-            twin.advance(self.setpoint)
+            self._advance(self.setpoint)
             if self._finished():
                 self.running = False
             await self._after_periods()

@@ -12,14 +12,17 @@ so that the event loop keeps serving clients and hearing signals meanwhile.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import hashlib
 import hmac
 import secrets
 from pathlib import Path
 
 from asyncua import ua
+from asyncua.common.callback import CallbackType
 from asyncua.crypto.permission_rules import USER_TYPES, PermissionRuleset, User, UserRole
 from asyncua.server.user_managers import UserManager
+from asyncua.ua.ua_binary import struct_from_binary
 
 from bwr_twin.errors import BwrError
 from bwr_twin.textfile import read_text
@@ -148,20 +151,72 @@ class Users(UserManager):
         return stored is not None and password is not None and check_password(password, stored)
 
 
-_WRITES = {ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary),
-           ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary)}
+_WRITE, _CALL = (ua.NodeId(ua.ObjectIds.WriteRequest_Encoding_DefaultBinary),
+                 ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary))
+_WRITES = {_WRITE, _CALL}
+# What any session may call, anonymous included: a SCADA that only watches must still be able to
+# ask for the active alarms again (Part 9's ConditionRefresh, bwr_twin.serve.alarms).
+ANYONE_CALLS = {ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh),
+                ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh2)}
 
 
 class ReadOnlyAnonymous(PermissionRuleset):
     """Users may do what a client does (never change the address space); anonymous sessions all
-    of it but writing and calling methods."""
+    of it but writing and calling methods, ConditionRefresh excepted (ANYONE_CALLS)."""
 
     def __init__(self):
         allowed = {ua.NodeId(t) for t in USER_TYPES}
         self._allowed = {UserRole.Admin: allowed, UserRole.User: allowed, UserRole.Anonymous: allowed - _WRITES}
 
     def check_validity(self, user, action_type_id, body) -> bool:
+        if action_type_id == _CALL and action_type_id not in self._allowed[user.role] and body is not None:
+            return _calls_only(body.copy(), ANYONE_CALLS)
         return action_type_id in self._allowed[user.role]
+
+    async def tell_user_access(self, event, dispatcher=None) -> None:
+        """asyncua's PostRead callback: a session reads UserAccessLevel and UserExecutable as
+        what it may do (Part 3, 5.6.3 and 5.7), not as the node allows anyone: an anonymous
+        session reads no CurrentWrite and UserExecutable false."""
+        user, results = event.user, event.response_params
+        if user is None:
+            return
+        may_write, may_call = (self.check_validity(user, request, None) for request in (_WRITE, _CALL))
+        for index, read in enumerate(event.request_params.NodesToRead):
+            found = results[index]
+            if found.Value is None or found.Value.Value is None:
+                continue
+            if read.AttributeId == ua.AttributeIds.UserAccessLevel and not may_write:
+                level = found.Value.Value & ~ua.AccessLevel.CurrentWrite.mask
+                results[index] = dataclasses.replace(found, Value=ua.Variant(level, ua.VariantType.Byte))
+            elif (read.AttributeId == ua.AttributeIds.UserExecutable and not may_call
+                  and read.NodeId not in ANYONE_CALLS):
+                results[index] = dataclasses.replace(found, Value=ua.Variant(False, ua.VariantType.Boolean))
+
+
+def _calls_only(body, methods: set[ua.NodeId]) -> bool:
+    """True if the Call request in `body` calls only `methods` (a request that does not parse: False)."""
+    try:
+        calls = struct_from_binary(ua.CallParameters, body).MethodsToCall
+    except Exception:  # noqa: BLE001 - a malformed request is refused, as before
+        return False
+    return bool(calls) and all(call.MethodId in methods for call in calls)
+
+
+def encrypt_user_names(server) -> None:
+    """Every secured endpoint's UserName token policy names the endpoint's security policy, so that
+    a client encrypts the password with the server's certificate (Part 4, 7.41) besides the
+    channel's encryption; asyncua would name None there, which asks for the password in clear
+    inside the token."""
+    add_endpoint = server.iserver.add_endpoint
+
+    def add(endpoint: ua.EndpointDescription) -> None:
+        if endpoint.SecurityMode != ua.MessageSecurityMode.None_:
+            for token in endpoint.UserIdentityTokens:
+                if token.TokenType == ua.UserTokenType.UserName:
+                    token.SecurityPolicyUri = endpoint.SecurityPolicyUri
+        add_endpoint(endpoint)
+
+    server.iserver.add_endpoint = add
 
 
 def check_options(*, url: str, loopback: bool, users_file: Path | None, certificate: Path | None,
@@ -205,6 +260,7 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
                                 f"({exc})") from None
     if certificate is not None:
         policies, names = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt], ["Basic256Sha256 SignAndEncrypt"]
+        encrypt_user_names(server)
     else:
         policies, names = [ua.SecurityPolicyType.NoSecurity], ["None (loopback only)"]
     if users_file is None and user_certificates is None:
@@ -215,7 +271,9 @@ async def secure(server, *, url: str, loopback: bool, users_file: Path | None, c
     trusted = load_user_certificates(user_certificates) if user_certificates is not None else {}
     install_login_checks()
     server.iserver.set_user_manager(Users(users, trusted))
-    server.set_security_policy(policies, permission_ruleset=ReadOnlyAnonymous())
+    permissions = ReadOnlyAnonymous()
+    server.set_security_policy(policies, permission_ruleset=permissions)
+    server.subscribe_server_callback(CallbackType.PostRead, permissions.tell_user_access)
     tokens, who = [ua.AnonymousIdentityToken], []
     if users:
         tokens.append(ua.UserNameIdentityToken)

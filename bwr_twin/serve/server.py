@@ -25,6 +25,7 @@ from bwr_twin.serve.nodeset import write_nodeset
 from bwr_twin.serve.results import RunWriter
 from bwr_twin.serve.security import secure
 from bwr_twin.serve.sensing import Sensing
+from bwr_twin.serve.writes import write_each_node
 from bwr_twin.sim.plant import mujoco_warnings
 from bwr_twin.sim.ranges import eu_ranges
 from bwr_twin.sim.twin import Twin
@@ -113,6 +114,7 @@ async def build_address_space(server: Server, clock: Clock) -> AddressSpace:
         clock.listeners.append(sensing)
     for index, axis in enumerate(AXES):
         server.set_attribute_value_setter(space.nodes["DriveSetpoint", axis].nodeid, clock.setpoint_setter(index))
+    write_each_node(server)  # a setter's refusal is its node's result, not the whole Write's
     await clock.publish(setpoint=True)
     return space
 
@@ -134,7 +136,7 @@ async def export_nodeset(scene: Scene, options: Options, path: Path) -> int:
 def _mode_line(clock: Clock) -> str:
     twin = clock.twin
     most = " at most" if not twin.loop.tracking.shared else ""  # a bench plan ends when it is done
-    path = f"{twin.samples} control periods{most} of {twin.period * 1e3:g} ms ({twin.loop.duration:g} s)"
+    path = f"{clock.path_periods} control periods{most} of {twin.period * 1e3:g} ms ({twin.loop.duration:g} s path)"
     if clock.mode == LOCKSTEP:
         return f"lockstep: Step(n) advances the twin n control periods; {path}"
     watchdog = (f"watchdog after {clock.watchdog_periods} periods without a DriveSetpoint write"
