@@ -35,7 +35,8 @@ from bwr_twin.sim.lockstep import Lockstep
 
 AXES = ("travel", "slew", "luff")
 STARTUP_TIMEOUT = 40.0  # s: imports, the scene, asyncua's standard address space, on a busy machine
-CALL_TIMEOUT = 30.0  # s: any one client session below
+REQUEST_TIMEOUT = 60.0  # s a request may take: a Step of thousands of periods on a busy machine
+CALL_TIMEOUT = 120.0  # s: any one client session below, a bound on a hang (a busy machine steps slowly)
 PID_PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
 USER, PASSWORD = "plc", "s3cret"
 EVENT_TIMEOUT = 10.0  # s: an alarm event reaches a subscriber within a publishing interval, on a busy machine
@@ -117,7 +118,7 @@ def run_served(scene, session, *options: str):
 
 def client(url: str, password: str | None = None) -> Client:
     """An asyncua client of the server at url: anonymous, or the users file's PLC with `password`."""
-    connection = Client(url)
+    connection = Client(url, timeout=REQUEST_TIMEOUT)
     if password is not None:
         connection.set_user(USER)
         connection.set_password(password)
