@@ -97,7 +97,7 @@ class Variable:
     name: str
     vr: int
     type: str
-    causality: str  # input, output, parameter, calculatedParameter
+    causality: str  # input, output, parameter, calculatedParameter, independent
     unit: str | None
     description: str
     group: str
@@ -130,6 +130,7 @@ def native_variables(starts: dict[str, float]) -> tuple[Variable, ...]:
         rows.append((f"{axis}.{SWITCHES.name}", "Boolean", "output", None, SWITCHES.meaning, SWITCHES.name))
     rows.append(("PeriodsLeft", "Integer", "output", None, PERIODS_LEFT, "PeriodsLeft"))
     rows.append(("ControlPeriod", "Real", "calculatedParameter", "s", CONTROL_PERIOD, "ControlPeriod"))
+    rows.append(("time", "Real", "independent", "s", "the simulated time, k control periods", "Time"))
     for name, _, _, unit, meaning in (*PARAMETERS, (AIR_DENSITY[0], None, None, *AIR_DENSITY[1:])):
         short = name.rpartition(".")[2]
         rows.append((name, "Integer" if unit is None else "Real", "parameter", unit, meaning, short))

@@ -190,7 +190,7 @@ def variables_header(variables: tuple[Variable, ...], guid: str) -> str:
     groups: dict[str, int] = {}
     for v in variables:
         groups.setdefault(v.group, v.vr)
-    kinds = {"input": "i", "output": "o", "parameter": "p", "calculatedParameter": "c"}
+    kinds = {"input": "i", "output": "o", "parameter": "p", "calculatedParameter": "c", "independent": "t"}
     minimum = [repr(float(v.minimum[0])) if v.minimum else "-1e308" for v in variables]
     names = ", ".join(f'"{v.name}"' for v in variables)
     return "\n".join([
@@ -200,7 +200,7 @@ def variables_header(variables: tuple[Variable, ...], guid: str) -> str:
         f"#define VARIABLE_COUNT {len(variables)}",
         *(f"#define VR_{group} {vr}" for group, vr in groups.items()), "",
         "#ifdef VARIABLE_TABLES /* the value references' types (r Real, i Integer, b Boolean), kinds (i input,",
-        "                          o output, p fixed parameter, c calculated parameter), least values, names */",
+        "                          o output, p fixed parameter, c calculated parameter, t time), least values, names */",
         f'static const char VARIABLE_TYPE[] = "{"".join(v.type[0].lower() for v in variables)}";',
         f'static const char VARIABLE_KIND[] = "{"".join(kinds[v.causality] for v in variables)}";',
         f"static const double VARIABLE_MIN[] = {{{', '.join(minimum)}}};",

@@ -343,6 +343,7 @@ static void measure(Reclaimer *r) {
 static void read_outputs(Reclaimer *r) {
     for (int j = 0; j < 3; j++) r->real[VR_DRIVE_APPLIED + j] = r->k > 0 ? r->data->qfrc_actuator[j] : 0.0;
     r->integer[VR_PERIODS_LEFT] = (int)(r->samples - r->k);
+    r->real[VR_TIME] = r->k * r->period;
 }
 
 void reclaimer_start(Reclaimer *r) {
@@ -481,8 +482,8 @@ static int settable(Reclaimer *r, const char *call, unsigned vr) {
         return reclaimer_refuse(r, call, "%s is a fixed parameter: it is set before fmiExitInitializationMode, "
                                 "not in state %s", VARIABLE_NAME[vr], state_name(r->state));
     }
-    return reclaimer_refuse(r, call, "%s is an %s: it cannot be set", VARIABLE_NAME[vr],
-                            kind == 'o' ? "output" : "calculated parameter");
+    return reclaimer_refuse(r, call, "%s is %s: it cannot be set", VARIABLE_NAME[vr],
+                            kind == 'o' ? "an output" : kind == 'c' ? "a calculated parameter" : "the independent variable");
 }
 
 static int in_range(Reclaimer *r, const char *call, unsigned vr, double value) {
