@@ -81,6 +81,8 @@ WIND_SPEED = Signal("WindSpeed", "m/s", "the wind's speed along the scene's wind
                     "it acts on the machine's wind areas while AirDensity > 0", False)
 AIR_DENSITY = ("AirDensity", "kg/m3", "density of the air the wind and the machine's motion act through; 0: no "
                "air drag, as the twin's still-air runs")
+DISTURBANCE = Signal("DisturbanceForce", ("N", "N.m"), "the random disturbance force on the joint over the last "
+                     "period: the world's, which the automation does not measure")
 PERIODS_LEFT = "control periods left on the path; 0 at its end"
 CONTROL_PERIOD = "the control period: a communication step is a whole number of them"
 # The least value of a parameter (the bound, and whether the bound itself is refused), by the
@@ -126,6 +128,9 @@ def native_variables(starts: dict[str, float]) -> tuple[Variable, ...]:
     for signal in OUTPUTS:
         for i, axis in enumerate(AXES):
             rows.append((f"{axis}.{signal.name}", "Real", "output", axis_unit(signal, i), signal.meaning, signal.name))
+    for i, axis in enumerate(AXES):
+        rows.append((f"{axis}.{DISTURBANCE.name}", "Real", "output", axis_unit(DISTURBANCE, i), DISTURBANCE.meaning,
+                     DISTURBANCE.name))
     for axis in AXES:
         rows.append((f"{axis}.{SWITCHES.name}", "Boolean", "output", None, SWITCHES.meaning, SWITCHES.name))
     rows.append(("PeriodsLeft", "Integer", "output", None, PERIODS_LEFT, "PeriodsLeft"))

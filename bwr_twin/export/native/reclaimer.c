@@ -341,7 +341,10 @@ static void measure(Reclaimer *r) {
 }
 
 static void read_outputs(Reclaimer *r) {
-    for (int j = 0; j < 3; j++) r->real[VR_DRIVE_APPLIED + j] = r->k > 0 ? r->data->qfrc_actuator[j] : 0.0;
+    for (int j = 0; j < 3; j++) {
+        r->real[VR_DRIVE_APPLIED + j] = r->k > 0 ? r->data->qfrc_actuator[j] : 0.0;
+        r->real[VR_DISTURBANCE_FORCE + j] = r->k > 0 ? r->disturbance[j] : 0.0;
+    }
     r->integer[VR_PERIODS_LEFT] = (int)(r->samples - r->k);
     r->real[VR_TIME] = r->k * r->period;
 }
