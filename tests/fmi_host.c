@@ -6,6 +6,8 @@
                                             reference, PERIODS periods of one step each, the
                                             disturbances off; prints each period's encoder positions
                                             unless quiet, then "end PERIODS_LEFT"
+     fmi_host DIR bench 2 PERIODS            as run, quiet, then the time of the periods' loop alone:
+                                            "PERIODS SECONDS"
      fmi_host DIR states 2|3                every call in every state of a fresh instance: one
                                             line "STATE CALL STATUS LOGGED" each
      fmi_host DIR rules 2|3                 the FMI rules the FMU keeps, one line each: "RULE ok"
@@ -13,12 +15,14 @@
                                             the setpoints at 0, the disturbance forces of each period
 
    Exit 0 once everything asked has run; 1 if a call that must succeed did not. */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include <dlfcn.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "fmi2Functions.h"
 #include "fmi3Functions.h"
@@ -100,6 +104,14 @@ static void pd(const double *values, double *force) {
         force[j] = HOLD[j] + KP[j] * (values[6 + j] - values[j]) + KD[j] * (values[9 + j] - values[3 + j]);
 }
 
+static double seconds(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return now.tv_sec + 1e-9 * now.tv_nsec;
+}
+
+static double loop_seconds; /* the last run's loop, instantiation and initialisation excluded */
+
 static int run2(long periods, int quiet) {
     LOOKUP(fmi2Instantiate); LOOKUP(fmi2SetupExperiment); LOOKUP(fmi2EnterInitializationMode);
     LOOKUP(fmi2ExitInitializationMode); LOOKUP(fmi2SetReal); LOOKUP(fmi2GetReal); LOOKUP(fmi2GetInteger);
@@ -116,6 +128,7 @@ static int run2(long periods, int quiet) {
     memcpy(measured, r.position, sizeof r.position), memcpy(measured + 3, r.velocity, sizeof r.velocity);
     memcpy(measured + 6, r.reference, sizeof r.reference);
     memcpy(measured + 9, r.reference_velocity, sizeof r.reference_velocity);
+    double start = seconds();
     for (long k = 0; k < periods; k++) {
         double values[12], force[3];
         if (fmi2GetReal(c, measured, 12, values)) fail("fmi2GetReal failed: %s", last_message);
@@ -124,6 +137,7 @@ static int run2(long periods, int quiet) {
         if (fmi2SetReal(c, r.setpoint, 3, force)) fail("fmi2SetReal failed: %s", last_message);
         if (fmi2DoStep(c, k * period, period, fmi2True)) fail("fmi2DoStep %ld failed: %s", k, last_message);
     }
+    loop_seconds = seconds() - start;
     int left;
     if (fmi2GetInteger(c, &r.periods_left, 1, &left) || fmi2Terminate(c)) fail("the end failed: %s", last_message);
     fmi2FreeInstance(c);
@@ -472,7 +486,10 @@ int main(int argc, char **argv) {
     snprintf(RESOURCES_URI, sizeof RESOURCES_URI, "file://%s/resources", dir);
     snprintf(RESOURCES_PATH, sizeof RESOURCES_PATH, "%s/resources/", dir);
     int status;
-    if (!strcmp(mode, "run")) {
+    if (!strcmp(mode, "bench") && fmi == 2 && argc == 5) {
+        status = run2(atol(argv[4]), 1);
+        printf("%ld %.9f\n", atol(argv[4]), loop_seconds);
+    } else if (!strcmp(mode, "run")) {
         long periods = argc > 4 ? atol(argv[4]) : 1;
         int quiet = argc > 5 && !strcmp(argv[5], "quiet");
         status = fmi == 2 ? run2(periods, quiet) : run3(periods, quiet);
