@@ -50,6 +50,9 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         if (*p != '/') p = strchr(p, '/') ? strchr(p, '/') : p;
     } else if (!strncmp(p, "file:", 5)) p += 5;
     else REFUSE("fmi2Instantiate: the resource location %s is not a file URI", fmuResourceLocation);
+#ifdef _WIN32
+    if (p[0] == '/' && p[1] && p[2] == ':') p++; /* file:///C:/... names C:/... */
+#endif
     char *folder = malloc(strlen(p) + 1);
     if (!folder) REFUSE("fmi2Instantiate: out of memory");
     size_t n = 0;

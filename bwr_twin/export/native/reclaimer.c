@@ -54,8 +54,14 @@ struct Reclaimer {
 
 /* -- MuJoCo's errors and warnings, heard only while this file calls it --------------------- */
 
-static _Thread_local jmp_buf *mujoco_error_exit;
-static _Thread_local char mujoco_error_text[256];
+#if defined(_MSC_VER)
+#define THREAD_LOCAL __declspec(thread) /* MSVC's C has no _Thread_local */
+#else
+#define THREAD_LOCAL _Thread_local
+#endif
+
+static THREAD_LOCAL jmp_buf *mujoco_error_exit;
+static THREAD_LOCAL char mujoco_error_text[256];
 
 static void on_mujoco_error(const char *text) {
     snprintf(mujoco_error_text, sizeof mujoco_error_text, "%s", text);
@@ -227,9 +233,9 @@ static int read_path(Reclaimer *r, const char *path, char *why, size_t n) {
 
 static int load_model(Reclaimer *r, const char *path, char *why, size_t n) {
     Handlers previous = hear_mujoco();
-    jmp_buf exit;
-    mujoco_error_exit = &exit;
-    if (setjmp(exit)) {
+    jmp_buf escape;
+    mujoco_error_exit = &escape;
+    if (setjmp(escape)) {
         mujoco_error_exit = NULL;
         stop_hearing(previous);
         snprintf(why, n, "%s: MuJoCo: %s", path, mujoco_error_text);
@@ -411,9 +417,9 @@ static int advance(Reclaimer *r, const char *call) {
     m->opt.density = r->real[VR_AIR_DENSITY];
     for (int i = 0; i < 3; i++) m->opt.wind[i] = r->real[VR_WIND_SPEED] * r->wind_direction[i];
     Handlers previous = hear_mujoco();
-    jmp_buf exit;
-    mujoco_error_exit = &exit;
-    if (setjmp(exit)) {
+    jmp_buf escape;
+    mujoco_error_exit = &escape;
+    if (setjmp(escape)) {
         mujoco_error_exit = NULL;
         stop_hearing(previous);
         return reclaimer_refuse(r, call, "the run failed: MuJoCo: %s, near t = %.2f s", mujoco_error_text,
