@@ -252,3 +252,46 @@ def test_without_a_c_compiler_the_export_says_so_in_one_line(tmp_path):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: no C compiler found"), done.stderr
     assert shutil.which("cc") is not None  # this machine has one: the refusal came from the PATH given
+
+
+def test_the_wind_from_its_input_acts_as_the_twins_mean_wind(tmp_path):
+    """The heavy machine (its boom and wheel have wind areas) on the paper's path in a 20 m/s wind
+    across the rail, no stockpile: WindSpeed and AirDensity start at the scene's, and the encoders
+    are the twin's bit for bit (the setpoints at 0); still air gives another trace."""
+    from fmpy import read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    from bwr_twin.export.native_fmu import export_native_fmu
+
+    windy = {"machine.mjcf": str(ROOT / "mjcf" / "bwr_heavy.xml"), "plant.wind_speed": 20.0,
+             "plant.wind_direction": 90.0, "plant.air_density": 1.204, "disturbance.amplitude": [0.0, 0.0, 0.0]}
+    scene = load_scene(PAPER, windy)
+    out = export_native_fmu(scene, tmp_path / "wind.fmu")
+    with zipfile.ZipFile(out) as archive:
+        archive.extractall(tmp_path / "wind")
+    description = read_model_description(str(out))
+    refs = {v.name: v.valueReference for v in description.modelVariables}
+    fmu = FMU2Slave(guid=description.guid, unzipDirectory=str(tmp_path / "wind"), modelIdentifier="BwrReclaimer",
+                    instanceName="wind")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    assert fmu.getReal([refs["WindSpeed"], refs["AirDensity"]]) == [20.0, 1.204]
+    positions = [refs[f"{axis}.EncoderPosition"] for axis in ("Travel", "Slew", "Luff")]
+    native = []
+    for k in range(300):
+        native.append(fmu.getReal(positions))
+        fmu.doStep(k * 0.01, 0.01)
+    fmu.terminate()
+    fmu.freeInstance()
+
+    def twin_trace(scene) -> np.ndarray:
+        twin, trace = Twin(scene), []
+        for _ in range(300):
+            trace.append(twin.measured[0])
+            twin.advance([0.0, 0.0, 0.0])
+        return np.array(trace)
+
+    np.testing.assert_array_equal(np.array(native), twin_trace(scene))
+    assert not np.array_equal(np.array(native), twin_trace(load_scene(PAPER, windy | {"plant.wind_speed": 0.0})))
