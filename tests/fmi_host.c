@@ -251,6 +251,12 @@ static int states2(void) {
             printf("%s %s %d %d\n", STATES[state], name, status, logged);
             fmi2FreeInstance(c);
         }
+    for (int which = 0; which < CALLS2; which++) { /* no instance at all: an error, and nobody to log to */
+        const char *name = "";
+        logged = 0;
+        int status = call2(which, NULL, &r, &name);
+        printf("null %s %d %d\n", name, status, logged);
+    }
     fmi2FreeInstance(NULL); /* allowed: nothing to free */
     return 0;
 }
@@ -440,6 +446,12 @@ static int states3(void) {
             printf("%s %s %d %d\n", STATES[state], name, status, logged);
             fmi3FreeInstance(c);
         }
+    for (int which = 0; which < CALLS3; which++) {
+        const char *name = "";
+        logged = 0;
+        int status = call3(which, NULL, &r, &name);
+        printf("null %s %d %d\n", name, status, logged);
+    }
     fmi3FreeInstance(NULL);
     return 0;
 }
