@@ -52,43 +52,66 @@ struct Reclaimer {
     double disturbance[3];
 };
 
-/* -- MuJoCo's errors and warnings, heard only while this file calls it --------------------- */
+/* -- MuJoCo's errors and warnings ------------------------------------------------------------- */
+/* MuJoCo's handlers are the process's, shared with whatever else in the host uses MuJoCo. Ours
+   are installed while an instance lives and chain to the host's: an error or a warning in a call
+   of this file (`hearing`, per thread) is this file's, any other goes where it went before. The
+   last instance freed puts the host's back, so unloading this library leaves no handler behind. */
 
 #if defined(_MSC_VER)
+#include <windows.h>
 #define THREAD_LOCAL __declspec(thread) /* MSVC's C has no _Thread_local */
+static volatile LONG live_instances;
+#define ADD_INSTANCES(n) InterlockedExchangeAdd(&live_instances, (n))
 #else
+#include <stdatomic.h>
 #define THREAD_LOCAL _Thread_local
+static atomic_int live_instances;
+#define ADD_INSTANCES(n) atomic_fetch_add(&live_instances, (n))
 #endif
 
+static THREAD_LOCAL int hearing;
 static THREAD_LOCAL jmp_buf *mujoco_error_exit;
 static THREAD_LOCAL char mujoco_error_text[256];
+static void (*host_error)(const char *), (*host_warning)(const char *);
 
 static void on_mujoco_error(const char *text) {
-    snprintf(mujoco_error_text, sizeof mujoco_error_text, "%s", text);
-    if (mujoco_error_exit) longjmp(*mujoco_error_exit, 1);
+    if (hearing && mujoco_error_exit) {
+        snprintf(mujoco_error_text, sizeof mujoco_error_text, "%s", text);
+        longjmp(*mujoco_error_exit, 1);
+    }
+    if (host_error) host_error(text);
+    else { /* MuJoCo's own behaviour without a handler */
+        fprintf(stderr, "ERROR: %s\n", text);
+        exit(EXIT_FAILURE);
+    }
 }
 
 static void on_mujoco_warning(const char *text) {
-    (void)text; /* the data's warning counters say it: read after each period */
+    if (hearing) return; /* the data's warning counters say it: read after each period */
+    if (host_warning) host_warning(text);
+    else fprintf(stderr, "WARNING: %s\n", text);
 }
 
-typedef struct {
-    void (*error)(const char *);
-    void (*warning)(const char *);
-} Handlers;
-
-/* MuJoCo's handlers are global: ours are installed for a call and the host's put back after. */
-static Handlers hear_mujoco(void) {
-    Handlers previous = {mju_user_error, mju_user_warning};
-    mju_user_error = on_mujoco_error;
-    mju_user_warning = on_mujoco_warning;
-    return previous;
+static void install_handlers(void) {
+    void (*error)(const char *) = mju_user_error, (*warning)(const char *) = mju_user_warning;
+    if (error != on_mujoco_error) host_error = error, mju_user_error = on_mujoco_error;
+    if (warning != on_mujoco_warning) host_warning = warning, mju_user_warning = on_mujoco_warning;
 }
 
-static void stop_hearing(Handlers previous) {
-    mju_user_error = previous.error;
-    mju_user_warning = previous.warning;
+static void remove_handlers(void) {
+    if (mju_user_error == on_mujoco_error) mju_user_error = host_error;
+    if (mju_user_warning == on_mujoco_warning) mju_user_warning = host_warning;
 }
+
+/* This thread's MuJoCo calls are the FMU's until stop_hearing(); ours installed again if the host
+   replaced them since. */
+static void hear_mujoco(void) {
+    install_handlers();
+    hearing = 1;
+}
+
+static void stop_hearing(void) { hearing = 0; }
 
 /* -- logging ----------------------------------------------------------------------------- */
 
@@ -232,19 +255,19 @@ static int read_path(Reclaimer *r, const char *path, char *why, size_t n) {
 }
 
 static int load_model(Reclaimer *r, const char *path, char *why, size_t n) {
-    Handlers previous = hear_mujoco();
+    hear_mujoco();
     jmp_buf escape;
     mujoco_error_exit = &escape;
     if (setjmp(escape)) {
         mujoco_error_exit = NULL;
-        stop_hearing(previous);
+        stop_hearing();
         snprintf(why, n, "%s: MuJoCo: %s", path, mujoco_error_text);
         return 0;
     }
     r->model = mj_loadModel(path, NULL);
     if (r->model) r->data = mj_makeData(r->model);
     mujoco_error_exit = NULL;
-    stop_hearing(previous);
+    stop_hearing();
     if (!r->model || !r->data) {
         snprintf(why, n, "%s: MuJoCo %s cannot load it (a model saved by another MuJoCo version?)", path,
                  mj_versionString());
@@ -265,6 +288,7 @@ static int load_model(Reclaimer *r, const char *path, char *why, size_t n) {
 Reclaimer *reclaimer_new(const char *resources, Logger log, void *owner, int log_info) {
     Reclaimer *r = calloc(1, sizeof *r);
     if (!r) return NULL;
+    if (ADD_INSTANCES(1) == 0) install_handlers();
     r->log = log, r->owner = owner, r->log_info = log_info;
     char why[MESSAGE] = "";
     char *plant = joined(resources, "plant.txt"), *path = joined(resources, "path.bin"),
@@ -285,6 +309,7 @@ Reclaimer *reclaimer_new(const char *resources, Logger log, void *owner, int log
 
 void reclaimer_free(Reclaimer *r) {
     if (!r) return;
+    if (ADD_INSTANCES(-1) == 1) remove_handlers();
     if (r->data) mj_deleteData(r->data);
     if (r->model) mj_deleteModel(r->model);
     free(r->path);
@@ -360,9 +385,9 @@ void reclaimer_start(Reclaimer *r) {
     mjData *d = r->data;
     mj_resetData(m, d);
     for (int j = 0; j < 3; j++) d->qpos[j] = r->start_q[j];
-    Handlers previous = hear_mujoco();
+    hear_mujoco();
     mj_forward(m, d);
-    stop_hearing(previous);
+    stop_hearing();
     r->k = 0;
     for (int j = 0; j < 3; j++) {
         r->resolution[j] = r->real[VR_ENCODER_RESOLUTION + j];
@@ -416,18 +441,18 @@ static int advance(Reclaimer *r, const char *call) {
     }
     m->opt.density = r->real[VR_AIR_DENSITY];
     for (int i = 0; i < 3; i++) m->opt.wind[i] = r->real[VR_WIND_SPEED] * r->wind_direction[i];
-    Handlers previous = hear_mujoco();
+    hear_mujoco();
     jmp_buf escape;
     mujoco_error_exit = &escape;
     if (setjmp(escape)) {
         mujoco_error_exit = NULL;
-        stop_hearing(previous);
+        stop_hearing();
         return reclaimer_refuse(r, call, "the run failed: MuJoCo: %s, near t = %.2f s", mujoco_error_text,
                                 d->time);
     }
     for (int s = 0; s < r->substeps; s++) mj_step(m, d);
     mujoco_error_exit = NULL;
-    stop_hearing(previous);
+    stop_hearing();
     for (int w = 0; w < mjNWARNING; w++)
         if (d->warning[w].number > 0)
             return reclaimer_refuse(r, call, "the run diverged: MuJoCo: %s, near t = %.2f s", warning_meaning(w),
