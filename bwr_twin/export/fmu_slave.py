@@ -5,7 +5,7 @@ the files it reads); pythonfmu's binary loads it in the importing tool's Python,
 is installed. The machine is `bwr_twin.sim.twin.Twin`, the same one the OPC UA server serves, so
 the FMU, the server and an in-process loop give one PID the same encoders, bit for bit.
 
-Variables (their units and meanings in OUTPUTS, SETPOINT, TRIM, PARAMETERS), named as the OPC UA
+Variables (their units and meanings in bwr_twin.export.fmu_variables), named as the OPC UA
 address space names them:
 - inputs `<Axis>.DriveSetpoint` (N, N m), held over the periods a step advances; in a bench
   reclaim, `SlewSpeedTrim` with `SlewSpeedTrimFromInput`, the importer's rate loop in place of the
@@ -33,12 +33,25 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.export.fmu_variables import (
+    AXES,
+    BELT_SCALE,
+    NEIGHBOUR_POSITION,
+    NEIGHBOUR_REPORT_TIME,
+    OUTPUTS,
+    PARAMETERS,
+    RECLAIM_RATE,
+    SETPOINT,
+    SWITCHES,
+    TRIM,
+    TRIM_FROM_INPUT,
+    UNITS,
+    WHEEL_CURRENT,
+    axis_unit,
+)
 from bwr_twin.model.instruments import read_instruments
 from bwr_twin.model.spec import compile_model
 from bwr_twin.sim.plant import mujoco_warnings
-from bwr_twin.export.fmu_variables import (AXES, BELT_SCALE, NEIGHBOUR_POSITION, NEIGHBOUR_REPORT_TIME, OUTPUTS,
-                                           PARAMETERS, RECLAIM_RATE, SETPOINT, SWITCHES, TRIM, TRIM_FROM_INPUT, UNITS,
-                                           WHEEL_CURRENT, axis_unit)
 from bwr_twin.sim.twin import Twin
 
 SCENE_FILE = "scene.toml"  # in the FMU's resources, beside the files it reads

@@ -79,8 +79,8 @@ def axis_unit(signal: Signal, index: int) -> str | None:
 # air density that makes it act. Its other variables are the ones above.
 WIND_SPEED = Signal("WindSpeed", "m/s", "the wind's speed along the scene's wind direction, held over the step; "
                     "it acts on the machine's wind areas while AirDensity > 0", False)
-AIR_DENSITY = ("AirDensity", "kg/m3", "density of the air the wind and the machine's motion act through; 0: no "
-               "air drag, as the twin's still-air runs")
+AIR_DENSITY = ("AirDensity", "kg/m3", ("density of the air the wind and the machine's motion act through; 0: no "
+                                        "air drag, as the twin's still-air runs"))
 DISTURBANCE = Signal("DisturbanceForce", ("N", "N.m"), "the random disturbance force on the joint over the last "
                      "period: the world's, which the automation does not measure")
 PERIODS_LEFT = "control periods left on the path; 0 at its end"

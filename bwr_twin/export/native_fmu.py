@@ -101,8 +101,7 @@ def export_native_fmu(scene: Scene, out: Path, *, fmi: int = 2, overwrite: bool 
         resources, sources, binaries = root / "resources", root / "sources", root / "binaries" / PLATFORM[fmi]
         for path in (resources, sources, binaries):
             path.mkdir(parents=True)
-        samples, period, starts = _write_resources(scene, resources)
-        variables = native_variables(starts)
+        samples, period, variables = _write_resources(scene, resources)
         _copy_sources(sources, fmi)
         guid = _guid(resources, sources, fmi)
         (sources / "variables.h").write_text(variables_header(variables, guid), encoding="utf-8")
@@ -123,9 +122,9 @@ def export_native_fmu(scene: Scene, out: Path, *, fmi: int = 2, overwrite: bool 
     return out
 
 
-def _write_resources(scene: Scene, resources: Path) -> tuple[int, float, dict[str, float]]:
+def _write_resources(scene: Scene, resources: Path) -> tuple[int, float, tuple[Variable, ...]]:
     """model.mjb, path.bin, plant.txt and the machine's MJCF into `resources`: the control periods,
-    the period (s), and the start value of each input and parameter by name."""
+    the period (s), and the variables with their start values."""
     sim = scene.simulation
     period = sim.control_period
     machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
@@ -167,7 +166,7 @@ def _write_resources(scene: Scene, resources: Path) -> tuple[int, float, dict[st
     variables = native_variables(starts)
     lines += [f"value {v.vr} {v.start!r}" for v in variables if v.start is not None]
     (resources / "plant.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return tracking.samples, period, starts
+    return tracking.samples, period, variables
 
 
 def _copy_sources(sources: Path, fmi: int) -> None:
