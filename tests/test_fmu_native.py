@@ -80,8 +80,10 @@ def host_environment(fmu: Path) -> dict[str, str]:
     return environment
 
 
-def run_host(host: Path, fmu: Path, *arguments, valgrind: bool = False) -> subprocess.CompletedProcess:
-    command = [str(host), str(fmu.with_suffix("")), *map(str, arguments)]
+def run_host(host: Path, fmu: Path, *arguments, valgrind: bool = False,
+             folder: Path | None = None) -> subprocess.CompletedProcess:
+    """The host on `fmu` unzipped (beside it, or in `folder`)."""
+    command = [str(host), str(folder or fmu.with_suffix("")), *map(str, arguments)]
     if valgrind:
         command = ["valgrind", "-q", "--leak-check=full", "--errors-for-leak-kinds=definite", "--error-exitcode=3",
                    f"--suppressions={ROOT / 'tests' / 'valgrind.supp'}", *command]
@@ -299,3 +301,28 @@ def test_the_wind_from_its_input_acts_as_the_twins_mean_wind(tmp_path):
 
     np.testing.assert_array_equal(np.array(native), twin_trace(scene))
     assert not np.array_equal(np.array(native), twin_trace(load_scene(PAPER, windy | {"plant.wind_speed": 0.0})))
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_fmus_sources_build_its_library_again_as_the_docs_say(fmi, fmus, host, tmp_path):
+    """docs/fmu.md's Linux command, run on sources/ alone (with the mujoco wheel's headers), makes a
+    library the host runs: what an engineer does on another platform with that platform's compiler."""
+    import mujoco
+
+    unzipped = tmp_path / f"rebuilt{fmi}"
+    shutil.copytree(fmus[fmi].with_suffix(""), unzipped)
+    platform = unzipped / "binaries" / ("linux64" if fmi == 2 else "x86_64-linux")
+    (platform / "BwrReclaimer.so").unlink()
+    if fmi == 3:
+        listed = ElementTree.parse(unzipped / "sources" / "buildDescription.xml").iter("SourceFile")
+    else:
+        listed = ElementTree.parse(unzipped / "modelDescription.xml").find("CoSimulation/SourceFiles").iter("File")
+    files = [str(unzipped / "sources" / element.get("name")) for element in listed]
+    assert [Path(f).name for f in files] == ["reclaimer.c", f"fmi{fmi}.c"]
+    include = Path(mujoco.__file__).parent / "include"
+    subprocess.run(["cc", "-std=c11", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", f"-I{unzipped / 'sources'}",
+                    f"-I{include}", *files, "-o", str(platform / "BwrReclaimer.so"), f"-L{platform}",
+                    "-l:libmujoco.so.4.0.1", "-Wl,-rpath,$ORIGIN", "-lm"], check=True, timeout=120)
+    done = run_host(host, fmus[fmi], "run", fmi, 100, "quiet", folder=unzipped)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split()[:2] == ["end", str(PATH_PERIODS - 100)]
