@@ -14,7 +14,10 @@
      fmi_host DIR disturbance 2 PERIODS SEED HOLD
                                             the setpoints at 0, the disturbance forces of each period
 
-   Exit 0 once everything asked has run; 1 if a call that must succeed did not. */
+   The FMU's GUID (instantiation token) and its value references come from the environment, read
+   from its model description by the caller: FMU_GUID, and VR_<name, its dots as underscores>
+   (tests/test_fmu_native.py's host_environment). Exit 0 once everything asked has run; 1 if a
+   call that must succeed did not. */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include <dlfcn.h>
 #include <math.h>
