@@ -1,4 +1,6 @@
-"""The twin as an FMI 2.0 co-simulation FMU (`python -m bwr_twin.export fmu`, docs/fmu.md).
+"""The Python FMU (bwr_twin.export.fmu, docs/fmu.md): the FMI 2.0 co-simulation FMU that
+`python -m bwr_twin.export fmu` writes for the scenes the native FMU does not carry
+(tests/test_fmu_native.py tests that one). The short path scene's is built here directly.
 
 FMPy, an independent FMI importer, validates the FMU and co-simulates it under the PID of
 examples/fmu_pid.py, one control period a communication step, in a process of its own as an
@@ -24,6 +26,7 @@ from fmpy.validation import validate_fmu
 from test_serve import Launched, pid_session
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.export.fmu import export_fmu
 from bwr_twin.sim.lockstep import Lockstep
 from bwr_twin.sim.twin import Twin
 
@@ -49,9 +52,9 @@ def short_scene(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def short_fmu(short_scene, tmp_path_factory):
+    """The Python FMU of a path scene (the CLI writes the native one for it)."""
     out = tmp_path_factory.mktemp("fmu") / "reclaimer.fmu"
-    python("-m", "bwr_twin.export", "fmu", short_scene, "--out", out)
-    return out
+    return export_fmu(load_scene(short_scene), out)
 
 
 def fmpy_trace(fmu, *options) -> np.ndarray:
@@ -158,7 +161,8 @@ def test_a_scene_that_digs_publishes_its_reclaim_rate_and_instruments(tmp_path):
     """The heavy machine's belt scale and wheel current are outputs too, each period's reading the
     twin's own in process, bit for bit (the setpoints at 0: the boom sags, the wheel turns empty)."""
     out = tmp_path / "dig.fmu"
-    python("-m", "bwr_twin.export", "fmu", "heavy_dig_pile", "--out", out)
+    done = python("-m", "bwr_twin.export", "fmu", "heavy_dig_pile", "--out", out)
+    assert done.stdout.startswith("Python FMU (pythonfmu), FMI 2.0: the scene has a stockpile")  # the CLI's choice
     variables = {v.name: v for v in read_model_description(str(out)).modelVariables}
     for name, unit in (("ReclaimRate", "t/h"), ("BeltScale", "t/h"), ("WheelCurrent", "A")):
         assert variables[name].causality == "output" and variables[name].unit == unit

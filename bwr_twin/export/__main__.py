@@ -7,8 +7,10 @@
 
 `plc` writes the controller as IEC 61131-3 Structured Text into DIR (bwr_twin.export.plc). DIR must
 not exist, or be an export the twin wrote and --overwrite be given. `fmu` writes one run of the
-scene as an FMI 2.0 co-simulation FMU (bwr_twin.export.fmu); an existing one is replaced only with
---overwrite, and only if the twin wrote it. --overwrite replaces only what the twin wrote, unchanged
+scene as a co-simulation FMU: native (C and MuJoCo, FMI 2.0 or, with --fmi 3, 3.0;
+bwr_twin.export.native_fmu) where the scene is a path, else the Python FMU (FMI 2.0,
+bwr_twin.export.fmu), saying which and why; an existing one is replaced only with --overwrite, and
+only if the twin wrote it. --overwrite replaces only what the twin wrote, unchanged
 since (its manifest, bwr_twin.ownership): a file of the engineer's in DIR, or one edited, is named
 and refused. `aas` writes the machine as an Asset Administration Shell package holding the FMU, the
 MJCF, the PLC package and the NodeSet2 (bwr_twin.export.aas, docs/aas.md), replaced as an FMU is;
@@ -39,9 +41,10 @@ def main(argv: list[str] | None = None) -> int:
                      help="a fuzzy controller's fuzzy part as its control surface's table (default), or inferred "
                      "rule by rule each cycle as skfuzzy does (no table; the README states its cost)")
     plc.add_argument("--overwrite", action="store_true", help="replace DIR, an export the twin wrote")
-    fmu = commands.add_parser("fmu", help="one run of the scene as an FMI 2.0 co-simulation FMU")
+    fmu = commands.add_parser("fmu", help="one run of the scene as a co-simulation FMU")
     fmu.add_argument("scene", help="scene TOML file, or a shipped scene's name, e.g. pid_paper")
     fmu.add_argument("--out", required=True, type=Path, help="the .fmu file to write (must not exist)")
+    fmu.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the native FMU (default 2)")
     fmu.add_argument("--overwrite", action="store_true", help="replace FILE, an FMU the twin wrote")
     fmu.add_argument("--force", action="store_true", help=FORCE_HELP)
     aas = commands.add_parser("aas", help="the machine as an Asset Administration Shell (AASX) package")
@@ -70,14 +73,26 @@ def _plc(args) -> int:
 
 def _fmu(args) -> int:
     from bwr_twin.config.scene import load_scene
-    from bwr_twin.export.fmu import export_fmu
+    from bwr_twin.errors import SceneError
+    from bwr_twin.export.native_fmu import export_native_fmu, native_obstacle
     from bwr_twin.shipped import find_scene
-
     from bwr_twin.sim.budget import check_scenes
 
     scene = load_scene(find_scene(args.scene))
     check_scenes([scene], where=scene.path, out_dir=args.out.parent, force=args.force)  # the run the FMU will make
-    print(export_fmu(scene, args.out, overwrite=args.overwrite))
+    obstacle = native_obstacle(scene)
+    if obstacle is None:
+        out = export_native_fmu(scene, args.out, fmi=args.fmi, overwrite=args.overwrite)
+        print(f"native FMU, FMI {args.fmi}.0: C and MuJoCo's C library, no Python inside")
+        print(out)
+        return 0
+    if args.fmi == 3:
+        raise SceneError(f"{scene.path}: --fmi 3 is the native FMU's, but {obstacle} (FMI 2.0)")
+    from bwr_twin.export.fmu import export_fmu
+
+    out = export_fmu(scene, args.out, overwrite=args.overwrite)
+    print(f"Python FMU (pythonfmu), FMI 2.0: {obstacle}; it needs Python with bwr_twin where it runs (docs/fmu.md)")
+    print(out)
     return 0
 
 

@@ -1,4 +1,6 @@
-"""A scene as an FMI 2.0 co-simulation FMU, built with pythonfmu (bwr_twin.export.fmu_slave is its model).
+"""A scene as the Python FMU: FMI 2.0 co-simulation, built with pythonfmu (bwr_twin.export.fmu_slave
+is its model). `python -m bwr_twin.export fmu` writes it for the scenes the native FMU
+(bwr_twin.export.native_fmu) does not carry: a stockpile, stacking, a neighbour, an interlock, faults.
 
     reclaimer.fmu
         modelDescription.xml          every variable with its unit and description (fmu_slave.VARIABLES)

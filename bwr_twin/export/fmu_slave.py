@@ -5,7 +5,7 @@ the files it reads); pythonfmu's binary loads it in the importing tool's Python,
 is installed. The machine is `bwr_twin.sim.twin.Twin`, the same one the OPC UA server serves, so
 the FMU, the server and an in-process loop give one PID the same encoders, bit for bit.
 
-Variables (their units and meanings in OUTPUTS, SETPOINT, TRIM, PARAMETERS), named as the OPC UA
+Variables (their units and meanings in bwr_twin.export.fmu_variables), named as the OPC UA
 address space names them:
 - inputs `<Axis>.DriveSetpoint` (N, N m), held over the periods a step advances; in a bench
   reclaim, `SlewSpeedTrim` with `SlewSpeedTrimFromInput`, the importer's rate loop in place of the
@@ -23,7 +23,6 @@ from __future__ import annotations
 import ctypes
 import math
 import os
-from dataclasses import dataclass
 from itertools import chain
 from operator import itemgetter
 from pathlib import Path
@@ -34,73 +33,30 @@ from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.export.fmu_variables import (
+    AXES,
+    BELT_SCALE,
+    NEIGHBOUR_POSITION,
+    NEIGHBOUR_REPORT_TIME,
+    OUTPUTS,
+    PARAMETERS,
+    RECLAIM_RATE,
+    SETPOINT,
+    SWITCHES,
+    TRIM,
+    TRIM_FROM_INPUT,
+    UNITS,
+    WHEEL_CURRENT,
+    axis_unit,
+)
 from bwr_twin.model.instruments import read_instruments
 from bwr_twin.model.spec import compile_model
 from bwr_twin.sim.plant import mujoco_warnings
-from bwr_twin.sim.twin import MEASURED, Twin
+from bwr_twin.sim.twin import Twin
 
 SCENE_FILE = "scene.toml"  # in the FMU's resources, beside the files it reads
-AXES = ("Travel", "Slew", "Luff")
 STEP_TOLERANCE = 1e-9  # relative: a step this close to a whole number of periods counts as one
 PICKERS_KEPT = 64  # the sets of Reals an importer gets at once whose picking is kept: a few in practice
-
-# FMI 2.0 unit definitions (fmi2Unit): the SI base-unit exponents of each unit the variables carry.
-UNITS = {
-    "m": {"m": 1}, "rad": {"rad": 1}, "s": {"s": 1},
-    "m/s": {"m": 1, "s": -1}, "rad/s": {"rad": 1, "s": -1},
-    "m/s2": {"m": 1, "s": -2}, "rad/s2": {"rad": 1, "s": -2},
-    "N": {"kg": 1, "m": 1, "s": -2}, "N.m": {"kg": 1, "m": 2, "s": -2},
-    "t/h": {"kg": 1, "s": -1, "factor": 1000 / 3600}, "A": {"A": 1}, "1": {},
-}
-
-
-@dataclass(frozen=True)
-class Signal:
-    """One variable per axis (`per_axis`) or of the machine: its name, unit (linear, angular) and meaning."""
-
-    name: str
-    unit: tuple[str, str] | str | None
-    meaning: str
-    per_axis: bool = True
-
-
-OUTPUTS = (
-    Signal("EncoderPosition", ("m", "rad"), "encoder position, quantised to the scene's resolution"),
-    Signal("EncoderVelocity", ("m/s", "rad/s"), "encoder velocity, as the scene's encoders give it"),
-    Signal("ReferencePosition", ("m", "rad"), "the path's position at the step's end"),
-    Signal("ReferenceVelocity", ("m/s", "rad/s"), "the path's velocity at the step's end"),
-    Signal("ReferenceAcceleration", ("m/s2", "rad/s2"), "the path's acceleration at the step's end"),
-    Signal("DriveApplied", ("N", "N.m"), "drive force applied over the last period (within the drive's rating)"),
-)
-assert [s.name for s in OUTPUTS] == [*MEASURED, "DriveApplied"], "in the order the twin gives them"
-SWITCHES = Signal("AtLimit", None, "limit switch: the joint at or beyond its operating envelope or end stop")
-RECLAIM_RATE = Signal("ReclaimRate", "t/h", "what the bucket wheel reclaims, on the belt at the discharge", False)
-# The machine's instruments, where its MJCF describes them (docs/sensing.md): late and noisy.
-BELT_SCALE = Signal("BeltScale", "t/h", "the belt scale's reading: the rate the belt transport delay ago, "
-                    "with the scale's noise and filter", False)
-WHEEL_CURRENT = Signal("WheelCurrent", "A", "the wheel motor's current as its drive measures it", False)
-# A second machine on the rail, where the scene has a [neighbour] (docs/anticollision.md): what the
-# automation hears of it, its latest position report.
-NEIGHBOUR_POSITION = Signal("NeighbourPosition", ("m", "rad"), "the neighbour's position as its latest report "
-                            "gives it, true at NeighbourReportTime")
-NEIGHBOUR_REPORT_TIME = Signal("NeighbourReportTime", "s", "the simulated time at which the neighbour stood where its "
-                               "latest report says: the time less its report delay", False)
-# A bench reclaim's rate loop, replaceable by the importer's: its trim, and whether it is used.
-TRIM = Signal("SlewSpeedTrim", "1", "the bench plan's slew speed law times this, within the scene's "
-              "trim_limits, while SlewSpeedTrimFromInput is true", False)
-TRIM_FROM_INPUT = Signal("SlewSpeedTrimFromInput", None, "true: SlewSpeedTrim trims the slew speed; "
-                         "false: the scene's own rate loop does", False)
-SETPOINT = Signal("DriveSetpoint", ("N", "N.m"), "drive force the controller commands, held over the step")
-# Scene keys an importer may set before initialisation, each (FMI name, scene key, axis index or None, unit).
-PARAMETERS = (
-    ("Seed", "simulation.seed", None, None, "seed of the disturbance forces' random stream"),
-    *((f"{axis}.DisturbanceAmplitude", "disturbance.amplitude", i, ("N", "N.m")[i > 0],
-       "amplitude of the uniform random disturbance force") for i, axis in enumerate(AXES)),
-    ("DisturbanceHoldTime", "disturbance.hold_time", None, "s", "how long each random disturbance is held"),
-    *((f"{axis}.EncoderResolution", "encoders.resolution", i, ("m", "rad")[i > 0],
-       "the encoder's count, what its position is quantised to") for i, axis in enumerate(AXES)),
-)
-
 
 def _keep_library_loaded(unzipped: Path) -> None:
     """Mark pythonfmu's library in this FMU as never to be unloaded (Linux: RTLD_NODELETE).
@@ -113,11 +69,6 @@ def _keep_library_loaded(unzipped: Path) -> None:
         return  # Windows and macOS keep their own rules; the crash was seen on Linux
     for library in (unzipped / "binaries").glob("linux64/*.so"):
         ctypes.CDLL(str(library), mode=os.RTLD_NOW | os.RTLD_NOLOAD | os.RTLD_NODELETE)
-
-
-def axis_unit(signal: Signal, index: int) -> str | None:
-    """The unit of a per-axis signal on axis `index` (0 travel: linear; slew and luff: angular)."""
-    return signal.unit[0 if index == 0 else 1] if isinstance(signal.unit, tuple) else signal.unit
 
 
 class BwrReclaimer(Fmi2Slave):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bwr_twin.config.scene import Scene
+from bwr_twin.model.machine import Machine
 from bwr_twin.sensing.outputs import ScanLog
 from bwr_twin.sim.lockstep import Lockstep
 from bwr_twin.sim.record import RunResult
@@ -62,11 +63,7 @@ class Twin:
         """Back to the start of the path: a fresh run of the scene, the same disturbances."""
         self.loop = loop = Lockstep([self.scene], nthread=1)
         self.period = loop.period
-        machine = loop.machine
-        margin = END_STOP_MARGIN * np.nan_to_num(machine.joint_range[:, 1] - machine.joint_range[:, 0], posinf=0.0)
-        # m, rad, as Python floats: compared with the true joint every period
-        self._low = np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin).tolist()
-        self._high = np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin).tolist()
+        self._low, self._high = limit_switch_bounds(loop.machine)
         self._command = np.zeros((1, 3))  # N, N m: the drive forces held over a period
         self._switches: deque[tuple[int, bool, float]] = deque(maxlen=SWITCHES_KEPT)
         self.at_limit: tuple[bool, bool, bool] | None = None  # none before the first reading: no change to report
@@ -201,6 +198,15 @@ class Twin:
             position, velocity, acceleration = position[0], velocity[0], acceleration[0]
         self.measured = (q_measured[0].tolist(), qd_measured[0].tolist(), position.tolist(), velocity.tolist(),
                          acceleration.tolist())
+
+
+def limit_switch_bounds(machine: Machine) -> tuple[list[float], list[float]]:
+    """The (3,) low and high joint values (m, rad) at or beyond which a limit switch closes: the
+    operating envelope, or END_STOP_MARGIN inside an end stop. Python floats: compared with the
+    true joint every period."""
+    margin = END_STOP_MARGIN * np.nan_to_num(machine.joint_range[:, 1] - machine.joint_range[:, 0], posinf=0.0)
+    return (np.maximum(machine.envelope[:, 0], machine.joint_range[:, 0] + margin).tolist(),
+            np.minimum(machine.envelope[:, 1], machine.joint_range[:, 1] - margin).tolist())
 
 
 @dataclass(frozen=True, eq=False)
