@@ -71,7 +71,7 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
     machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
     where = f"{scene.path}: [reclaim]"
     planner = _Planner(reclaim, machine, None, scene.stockpile.bulk_density, scene.simulation.control_period, where)
-    moves, q = [], planner.start
+    moves, q = [], planner.start.q
     for i, (travel, slew, luff) in enumerate(reclaim.survey.waypoints):
         waypoint = np.array([travel, np.radians(slew), np.radians(luff)])
         try:
@@ -86,7 +86,8 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
         raise SceneError(f"{where}: 'stop.time' = {reclaim.stop.time:g} s ends within the survey, which takes "
                          f"{duration:.1f} s through its {len(moves)} waypoints ([reclaim.survey]); a stop "
                          "time counts from the run's start and must come after the survey's end")
-    return BenchPlan(tuple(moves), planner.start, planner.law, planner.acceleration, planner.rated, None, (),
+    limits = planner.limits
+    return BenchPlan(tuple(moves), planner.start.q, planner.law, limits.acceleration, limits.rated, None, (),
                      scene.stockpile.bulk_density, duration, duration + planner.period)
 
 
