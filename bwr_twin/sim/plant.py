@@ -141,7 +141,6 @@ class Plant:
         self.alive = np.array([r for r in range(self.batch.nsim) if r not in self.failures], dtype=np.int64)
 
 
-
 class _Drives:
     """The machine's drives as MuJoCo sees them: live views of the controls and of the applied
     forces, and each drive's actuator column and gear (a force is held as force over gear)."""
@@ -155,8 +154,8 @@ class _Drives:
 
 class _QuickStop:
     """A quick stop: each drive brakes its own speed on its inertia at the start pose, within its
-    force limits, in one control period (bwr_twin.sim.drives). Kept apart because only the
-    interlock and faults call it, from the live speeds and bias forces of the batch."""
+    force limits, in one control period (bwr_twin.sim.drives); only an interlock asks for it,
+    and it reads the batch's live speeds and bias forces."""
 
     def __init__(self, qvel: np.ndarray, bias: np.ndarray, inertia: np.ndarray, limits: np.ndarray,
                  period: float):
