@@ -27,7 +27,8 @@ PLAYER_STOP_WAIT = 5.0  # s for the player's thread to finish its frame when the
 
 
 class Playhead:
-    """Replay time, kept between the runs' start and end, and whether and how fast it advances."""
+    """Replay time, kept between the runs' start and end, and whether and how fast it advances;
+    like `Shown`, changed only on the player's thread."""
 
     def __init__(self, start: float, end: float):
         self.start, self.end = start, end
