@@ -414,15 +414,15 @@ def test_timeline_plays_pauses_and_jumps(short_recording):
         paused_at = player.time
         assert not player.playing and 1.0 < paused_at < 20.0  # about 5 s of run in 0.5 s at 10x
         time.sleep(0.2)
-        assert player.time == paused_at and player.time_slider.value == pytest.approx(paused_at)
+        assert player.time == paused_at and player.panel.time_slider.value == pytest.approx(paused_at)
         player.seek(12.5)
         time.sleep(0.2)
-        assert player.time == 12.5 and "t = 12.5 s" in player.readout.content
+        assert player.time == 12.5 and "t = 12.5 s" in player.panel.readout.content
         player.set_speed(100)
         player.toggle()  # plays to the end and stops there
         time.sleep(0.5)
         assert not player.playing and player.time == player.end
-        assert player.speed_slider.value == 100
+        assert player.panel.speed_slider.value == 100
 
 
 def test_preview_shows_the_machine_before_the_recording(short_scene, short_recording):
@@ -719,7 +719,7 @@ def test_the_chooser_hides_a_run_and_paints_the_machines(short_recording, tmp_pa
         assert second.nodes[0].opacity == pytest.approx(GHOST_OPACITY)  # the second seen through
         assert [box.label for box in player.panel.shown_boxes] == ["short (fuzzy_model)", "again (fuzzy_model)"]
         player.show_run(1, False)
-        until(lambda: "again" not in player.readout.content, "run 2 gone from the readout")
+        until(lambda: "again" not in player.panel.readout.content, "run 2 gone from the readout")
         assert not second.visible and len(player.panel.chart_handles[0].series) == 2  # x and run 1
         player.paint(None)  # each in its own colour
         until(lambda: first.nodes[0].color == first.colour, "run 1 in its colour")

@@ -240,7 +240,7 @@ def test_the_replay_colours_the_pile_by_the_grade_of_its_top_layer(grown):
                               for k in range(bins)] for tile in pile._tiles])
 
         def expected_by_bin() -> np.ndarray:
-            rows, cols = np.ix_(pile._rows, pile._cols)
+            rows, cols = np.ix_(pile._grid.rows, pile._grid.cols)
             grade = pile.dug.grade[rows, cols]
             counts = []
             for tile in pile._tiles:

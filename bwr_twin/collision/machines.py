@@ -16,10 +16,13 @@ machines at rest are not measured again.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import mujoco
 import numba
 import numpy as np
 
+from bwr_twin.collision.contacts import Contacts
 from bwr_twin.collision.monitor import RECHECK, WATCH, levers_of
 from bwr_twin.model.machine import Machine
 from bwr_twin.model.shapes import COLLISION_GROUP, PREFIX
@@ -35,66 +38,55 @@ class MachineClearance:
     Attributes:
         pairs: each pair's names, (the machine's part, the neighbour's part).
         parts: the machine's parts, in order; `nearest()` gives each one's clearance to the neighbour.
+        model: the model of both machines that poses them (`PairDistances`).
         now: (runs, pairs) m this period (WATCH where the machines are farther apart).
         least, least_time: (runs, pairs) the least clearance so far (m, at most WATCH) and when (s).
     """
 
     def __init__(self, machine: Machine, neighbour: Machine, runs: int, period: float):
-        self.model = model = compile_model(machine.path, Edits(payloads=machine.payloads, neighbour=neighbour.path))
-        self.data = mujoco.MjData(model)
+        self._distances = distances = PairDistances(machine, neighbour)
         self.period = period
-        own = _shapes(model, PREFIX)
-        other = _shapes(model, NEIGHBOUR + PREFIX)
-        self.pairs = [(a, b) for a in own for b in other]
+        own, other = distances.own, distances.other
+        self.pairs = distances.pairs
         self.parts = list(own)
         self._part_of = np.array([self.parts.index(a) for a, _ in self.pairs], dtype=np.int64)
-        self._geoms = np.array([(own[a], other[b]) for a, b in self.pairs], dtype=np.int64).reshape(-1, 2)
-        (reach, base), (other_reach, other_base) = (_reach(model, machine, own.values(), 0),
-                                                    _reach(model, neighbour, other.values(), 3))
-        self._reach, self._offset = reach + other_reach, base - other_base
+        self._reach = Reach.of(distances.model, machine, neighbour, own, other)
         self.now = np.full((runs, len(self.pairs)), WATCH)
         self.least = np.full((runs, len(self.pairs)), WATCH)
         self.least_time = np.zeros((runs, len(self.pairs)))
-        self._events: list[list[dict]] = [[] for _ in range(runs)]
-        self._open = np.full((runs, len(self.pairs)), -1, dtype=np.int64)
-        self._fromto = np.zeros(6)
-        self._levers = (levers_of(machine.collision_shapes), levers_of(neighbour.collision_shapes))
+        self._contacts = Contacts(runs, len(self.pairs))
         self._measured = np.full((runs, len(self.pairs)), WATCH)  # each pair's last measure
         self._moved = np.full((runs, len(self.pairs)), np.inf)  # m each pair may have closed since: measure at once
         self._due = np.zeros((runs, len(self.pairs)), dtype=np.bool_)  # the pairs to measure this period
         self._all = np.arange(runs)
         self.measured_periods = np.zeros(runs, dtype=np.int64)
 
+    @property
+    def model(self) -> mujoco.MjModel:
+        return self._distances.model
+
     def step(self, k: int, q: np.ndarray, qd: np.ndarray, neighbour_q: np.ndarray, neighbour_qd: np.ndarray,
              runs: np.ndarray | None) -> None:
         """Period k: the machines where joints q and neighbour_q (runs, 3) put them, moving at qd
         and neighbour_qd; only the `runs` given (None: all)."""
         order = self._all if runs is None else runs
-        due = self._due
-        if not _bound(order, q, qd, neighbour_q, neighbour_qd, self._levers[0], self._levers[1], self.period,
-                      self._offset, self._reach, WATCH, RECHECK, FLOOR, self._moved, self._measured, self.now, due):
+        due, reach = self._due, self._reach
+        if not _bound(order, q, qd, neighbour_q, neighbour_qd, reach.levers, reach.neighbour_levers, self.period,
+                      reach.offset, reach.reach, WATCH, RECHECK, FLOOR, self._moved, self._measured, self.now, due):
             return
-        model, data, time = self.model, self.data, round(k * self.period, 9)
+        time = round(k * self.period, 9)
         for run in np.flatnonzero(due.any(axis=1)).tolist():
             self.measured_periods[run] += 1
-            data.qpos[:3], data.qpos[3:6] = q[run], neighbour_q[run]
-            mujoco.mj_kinematics(model, data)
             measured = self._measured[run]
-            for pair in np.flatnonzero(due[run]).tolist():
-                a, b = self._geoms[pair]
-                measured[pair] = min(mujoco.mj_geomDistance(model, data, a, b, WATCH, self._fromto), WATCH)
+            self._distances.measure(q[run], neighbour_q[run], due[run], measured)
             self.now[run, due[run]] = measured[due[run]]
-            if _changed(measured, self.least[run], self.least_time[run], self._open[run], time):
-                self._contacts(run, measured, time)
+            if _changed(measured, self.least[run], self.least_time[run], self._contacts.open[run], time):
+                self._record_contacts(run, measured, time)
 
     def clearance_at(self, q: np.ndarray, neighbour_q: np.ndarray) -> float:
         """m between the two machines' nearest shapes at joint values q and neighbour_q (3,),
         at most WATCH; no run's record changes."""
-        data = self.data
-        data.qpos[:3], data.qpos[3:6] = q, neighbour_q
-        mujoco.mj_kinematics(self.model, data)
-        return min(min(mujoco.mj_geomDistance(self.model, data, a, b, WATCH, self._fromto) for a, b in self._geoms),
-                   WATCH)
+        return self._distances.nearest(q, neighbour_q)
 
     def nearest(self) -> np.ndarray:
         """(runs, parts) this period's clearance of each of the machine's parts to the neighbour's nearest."""
@@ -102,28 +94,79 @@ class MachineClearance:
         np.minimum.at(out.T, self._part_of, self.now.T)
         return out
 
-    def _contacts(self, run: int, distances: np.ndarray, time: float) -> None:
+    def _record_contacts(self, run: int, distances: np.ndarray, time: float) -> None:
         """Open, deepen or close run `run`'s contacts from its pairs' latest measures."""
-        events = self._events[run]
-        for pair in np.flatnonzero((distances <= 0.0) | (self._open[run] >= 0)):
-            index, depth = self._open[run, pair], float(-distances[pair])
-            if distances[pair] > 0.0:
-                events[index]["end_s"] = time
-                self._open[run, pair] = -1
-            elif index < 0:
-                self._open[run, pair] = len(events)
-                a, b = self.pairs[pair]
-                events.append({"time_s": time, "end_s": None, "bodies": [a, NEIGHBOUR + b], "depth_m": depth,
-                               "depth_time_s": time})
-            elif depth > events[index]["depth_m"]:
-                events[index]["depth_m"], events[index]["depth_time_s"] = depth, time
+        contacts = self._contacts
+        for pair in np.flatnonzero((distances <= 0.0) | (contacts.open[run] >= 0)):
+            a, b = self.pairs[pair]
+            contacts.record(run, pair, not distances[pair] > 0.0, float(-distances[pair]), time, [a, NEIGHBOUR + b])
 
     def metrics(self, run: int) -> tuple[dict, list[dict]]:
         """The least clearance of each pair ('boom | neighbour/boom': clearance_m, time_s) and the contacts of `run`."""
         least = {f"{a} | {NEIGHBOUR}{b}": {"clearance_m": float(self.least[run, i]),
                                            "time_s": float(self.least_time[run, i])}
                  for i, (a, b) in enumerate(self.pairs)}
-        return least, [dict(e) for e in self._events[run]]
+        return least, self._contacts.events(run)
+
+
+class PairDistances:
+    """MuJoCo's distances between the machine's shapes and its neighbour's, on a model of both
+    that nothing steps (the plant keeps the state): the one owner of its MjData.
+
+    Attributes:
+        own, other: part name -> geom id of the machine's and the neighbour's collision shapes.
+        pairs: each pair's names, (the machine's part, the neighbour's part).
+    """
+
+    def __init__(self, machine: Machine, neighbour: Machine):
+        self.model = model = compile_model(machine.path, Edits(payloads=machine.payloads, neighbour=neighbour.path))
+        self._data = mujoco.MjData(model)
+        self.own, self.other = _shapes(model, PREFIX), _shapes(model, NEIGHBOUR + PREFIX)
+        self.pairs = [(a, b) for a in self.own for b in self.other]
+        self._geoms = np.array([(self.own[a], self.other[b]) for a, b in self.pairs], dtype=np.int64).reshape(-1, 2)
+        self._fromto = np.zeros(6)
+
+    def measure(self, q: np.ndarray, neighbour_q: np.ndarray, due: np.ndarray, measured: np.ndarray) -> None:
+        """Write into `measured` (pairs,) the distance (m, at most WATCH) of each pair `due` at
+        joint values q and neighbour_q (3,)."""
+        model, data = self.model, self._data
+        data.qpos[:3], data.qpos[3:6] = q, neighbour_q
+        mujoco.mj_kinematics(model, data)
+        for pair in np.flatnonzero(due).tolist():
+            a, b = self._geoms[pair]
+            measured[pair] = min(mujoco.mj_geomDistance(model, data, a, b, WATCH, self._fromto), WATCH)
+
+    def nearest(self, q: np.ndarray, neighbour_q: np.ndarray) -> float:
+        """m between the nearest pair at joint values q and neighbour_q (3,), at most WATCH."""
+        data = self._data
+        data.qpos[:3], data.qpos[3:6] = q, neighbour_q
+        mujoco.mj_kinematics(self.model, data)
+        return min(min(mujoco.mj_geomDistance(self.model, data, a, b, WATCH, self._fromto) for a, b in self._geoms),
+                   WATCH)
+
+
+@dataclass(frozen=True)
+class Reach:
+    """How near and how fast the two machines' shapes can come: what bounds a pair's clearance
+    between its measures (the module's docstring).
+
+    reach: m, both machines' farthest shape from its carriage along the rail, summed.
+    offset: m, where the machine's carriage stands less the neighbour's, at travel 0.
+    levers, neighbour_levers: (3,) m a unit of each joint's speed moves either machine's shapes.
+    """
+
+    reach: float
+    offset: float
+    levers: np.ndarray
+    neighbour_levers: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, machine: Machine, neighbour: Machine, own: dict[str, int],
+           other: dict[str, int]) -> Reach:
+        (reach, base), (other_reach, other_base) = (_reach(model, machine, own.values(), 0),
+                                                    _reach(model, neighbour, other.values(), 3))
+        return cls(reach + other_reach, base - other_base, levers_of(machine.collision_shapes),
+                   levers_of(neighbour.collision_shapes))
 
 
 def _shapes(model: mujoco.MjModel, prefix: str) -> dict[str, int]:

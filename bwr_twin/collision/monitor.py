@@ -12,10 +12,12 @@ measure less that motion, which `now` holds."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from bwr_twin.collision.contacts import Contacts
 from bwr_twin.collision.pile import shape_clearance
 from bwr_twin.model.mount import site_pose
 from bwr_twin.model.shapes import BOX, CollisionShape
@@ -39,16 +41,10 @@ class PileClearance:
         checked = [s for s in shapes if not s.cuts]
         self.parts = [s.part for s in checked]
         self.period = period
-        self._x0, self._y0, self._spacing = float(surface.x[0]), float(surface.y[0]), float(surface.x[1] - surface.x[0])
-        n = len(checked)
-        self._kinds = np.array([s.kind for s in checked], dtype=np.int64)
-        self._halves = np.array([s.half for s in checked]).reshape(n, 3)
-        self._positions = np.array([s.mount.position for s in checked]).reshape(n, 3)
-        self._rotations = np.array([s.mount.rotation for s in checked]).reshape(n, 3, 3)
-        self._joints = np.array([s.mount.joints for s in checked], dtype=np.int64)
-        self._anchor = checked[0].mount.anchor if checked else np.zeros((3, 3))
-        self._axis = checked[0].mount.axis if checked else np.zeros((3, 3))
+        self._grid = (float(surface.x[0]), float(surface.y[0]), float(surface.x[1] - surface.x[0]))  # x0, y0, spacing
+        self._mounted = MountedShapes.of(checked)
         self.levers = levers_of(checked)
+        n = len(checked)
         self.now = np.full((runs, n), WATCH)
         self._measured = np.full((runs, n), WATCH)  # each shape's last measure
         self._moved = np.full(runs, np.inf)  # m the machine may have moved since: measure at once
@@ -56,8 +52,7 @@ class PileClearance:
         self.periods = np.zeros(runs, dtype=np.int64)  # ... of these
         self.least = np.full((runs, n), np.inf)
         self.least_time = np.zeros((runs, n))
-        self._events: list[list[dict]] = [[] for _ in range(runs)]
-        self._open = np.full((runs, n), -1, dtype=np.int64)  # each shape's contact under way, or -1
+        self._contacts = Contacts(runs, n)
         self._all = np.arange(runs)
 
     def step(self, k: int, q: np.ndarray, qd: np.ndarray, heights: np.ndarray, runs: np.ndarray | None) -> None:
@@ -65,39 +60,53 @@ class PileClearance:
         the piles' heights (runs, ny, nx) as dug until now; only the `runs` given (None: all)."""
         order = self._all if runs is None else runs
         self.periods[order] += 1
-        if not _clearances(heights, self._x0, self._y0, self._spacing, order, q, qd, self.period, self.levers,
-                           self._kinds, self._halves, self._positions, self._rotations, self._joints, self._anchor,
-                           self._axis, WATCH, RECHECK, NEAR, self._moved, self._measured, self.now, self.checks):
+        m = self._mounted
+        if not _clearances(heights, *self._grid, order, q, qd, self.period, self.levers,
+                           m.kinds, m.halves, m.positions, m.rotations, m.joints, m.anchor,
+                           m.axis, WATCH, RECHECK, NEAR, self._moved, self._measured, self.now, self.checks):
             return  # nothing measured: nothing nearer than before
         time = round(k * self.period, 9)
         closer = self._measured < self.least
         self.least[closer] = self._measured[closer]
         self.least_time[closer] = time
         touching = self._measured <= 0.0
-        if touching.any() or (self._open >= 0).any():
-            self._contacts(time, touching)
-
-    def _contacts(self, time: float, touching: np.ndarray) -> None:
-        for run, shape in zip(*np.nonzero(touching | (self._open >= 0))):
-            events, index = self._events[run], self._open[run, shape]
-            if touching[run, shape]:
-                depth = float(-self._measured[run, shape])
-                if index < 0:
-                    self._open[run, shape] = len(events)
-                    events.append({"time_s": time, "end_s": None, "bodies": [self.parts[shape], "pile"],
-                                   "depth_m": depth, "depth_time_s": time})
-                elif depth > events[index]["depth_m"]:
-                    events[index]["depth_m"], events[index]["depth_time_s"] = depth, time
-            else:
-                events[index]["end_s"] = time
-                self._open[run, shape] = -1
+        contacts = self._contacts
+        if touching.any() or (contacts.open >= 0).any():
+            for run, shape in zip(*np.nonzero(touching | (contacts.open >= 0))):
+                contacts.record(run, shape, touching[run, shape], float(-self._measured[run, shape]), time,
+                                [self.parts[shape], "pile"])
 
     def metrics(self, run: int) -> dict:
         """metrics.json's `collision` object of `run` (docs/contracts.md)."""
         least = {part: {"clearance_m": float(min(self.least[run, i], WATCH)), "time_s": float(self.least_time[run, i])}
                  for i, part in enumerate(self.parts)}
-        return {"watch_m": WATCH, "pile": least, "contacts": [dict(e) for e in self._events[run]],
+        return {"watch_m": WATCH, "pile": least, "contacts": self._contacts.events(run),
                 "interventions": [], "periods": int(self.periods[run]), "measured_periods": int(self.checks[run])}
+
+
+@dataclass(frozen=True)
+class MountedShapes:
+    """The checked shapes as the compiled kernel poses them: each one's kind, half sizes, mount
+    (position and rotation at q = 0, and which joints move it), and the joints' anchors and axes."""
+
+    kinds: np.ndarray  # (n,) BOX or CAPSULE
+    halves: np.ndarray  # (n, 3) m
+    positions: np.ndarray  # (n, 3) m
+    rotations: np.ndarray  # (n, 3, 3)
+    joints: np.ndarray  # (n,) how many of travel, slew, luff move each (the chain is serial)
+    anchor: np.ndarray  # (3, 3) m, each joint's anchor
+    axis: np.ndarray  # (3, 3) each joint's axis
+
+    @classmethod
+    def of(cls, shapes: Sequence[CollisionShape]) -> MountedShapes:
+        n = len(shapes)
+        return cls(kinds=np.array([s.kind for s in shapes], dtype=np.int64),
+                   halves=np.array([s.half for s in shapes]).reshape(n, 3),
+                   positions=np.array([s.mount.position for s in shapes]).reshape(n, 3),
+                   rotations=np.array([s.mount.rotation for s in shapes]).reshape(n, 3, 3),
+                   joints=np.array([s.mount.joints for s in shapes], dtype=np.int64),
+                   anchor=shapes[0].mount.anchor if shapes else np.zeros((3, 3)),
+                   axis=shapes[0].mount.axis if shapes else np.zeros((3, 3)))
 
 
 def levers_of(shapes: Sequence[CollisionShape]) -> np.ndarray:

@@ -30,6 +30,7 @@ from bwr_twin.gym.actions import checked_actions, make_drive
 from bwr_twin.gym.kernels import observe
 from bwr_twin.gym.reward import tracking_reward
 from bwr_twin.gym.scales import INSTRUMENTS, OBSERVATION_LIMIT, Scales
+from bwr_twin.gym.slots import Group, Readings, Slots
 from bwr_twin.gym.spaces import ENV_ID
 from bwr_twin.model.machine import AXES, describe
 from bwr_twin.shipped import find_scene
@@ -38,22 +39,6 @@ from bwr_twin.sim.lockstep import Lockstep
 from bwr_twin.sim.plant import mujoco_warnings
 
 TIME_LIMIT = "time limit"  # info["ended"] of an episode cut short by `duration`
-
-
-class Group:
-    """One lockstep and the environment slot of each of its runs (-1: the slot's episode ended).
-
-    `runs` lists the runs whose episode goes on, `live_slots` their slots.
-    """
-
-    def __init__(self, loop: Lockstep, slots: np.ndarray):
-        self.loop, self.slots = loop, slots.copy()
-        self.runs, self.live_slots = np.arange(len(slots)), self.slots.copy()
-
-    def leave(self, slot: int) -> None:
-        self.slots[self.slots == slot] = -1
-        self.runs = np.flatnonzero(self.slots >= 0)
-        self.live_slots = self.slots[self.runs]
 
 
 @dataclass
@@ -118,63 +103,65 @@ class Episodes:
         self.drive = make_drive(action_mode, first, count, force_scale=force_scale,
                                 acceleration_scale=acceleration_scale)
         self.count = count
-        self.observation = np.zeros((count, self.scales.size), dtype=np.float32)
-        if count == 1:  # step_one's kernel writes them: views of one state array
-            self._state = state = np.zeros(kernels.ELAPSED + 1)
-            self.error, self._q, self._qd, self._qdd_ref = (
-                state[i:i + 3].reshape(1, 3) for i in (kernels.ERROR, kernels.MEASURED_Q, kernels.MEASURED_QD,
-                                                        kernels.REFERENCE_QDD))
-            self.elapsed = state[kernels.ELAPSED:kernels.ELAPSED + 1]
+        self._readings = Readings(count, self.scales.size)
+        if count == 1:  # what step_one's kernel compares, scales and weighs with
             self._constants = np.concatenate([self.envelope.ravel(), self.scales.error, self.weights,
                                               self.scales.offset, self.scales.divisor, [OBSERVATION_LIMIT]])
-            self._outside = np.zeros(3, dtype=bool)
-            self._instruments_one = self.observation[0, INSTRUMENTS]  # a view: written in place
-        else:
-            self.error = np.zeros((count, 3))
-            self.elapsed = np.zeros(count)
-            self._q, self._qd, self._qdd_ref = (np.zeros((count, 3)) for _ in range(3))
-        self.seed = np.zeros(count, dtype=np.int64)
-        self._groups: list[Group] = []
-        self._group_of: list[Group | None] = [None] * count
-        self._running = np.zeros(count, dtype=bool)
+        self._slots = Slots(count)
+
+    @property
+    def observation(self) -> np.ndarray:
+        """Live: see the class's attributes (kept by `Readings`)."""
+        return self._readings.observation
+
+    @property
+    def error(self) -> np.ndarray:
+        """Live: see the class's attributes (kept by `Readings`)."""
+        return self._readings.error
+
+    @property
+    def elapsed(self) -> np.ndarray:
+        """Live: see the class's attributes (kept by `Readings`)."""
+        return self._readings.elapsed
+
+    @property
+    def seed(self) -> np.ndarray:
+        """Live: see the class's attributes (kept by `Slots`)."""
+        return self._slots.seed
 
     @property
     def locksteps(self) -> list[Lockstep]:
         """The locksteps that hold a running episode."""
-        return [group.loop for group in self._groups]
+        return [group.loop for group in self._slots.groups]
 
     def running(self) -> np.ndarray:
         """(count,) bool: the slots whose episode goes on."""
-        return self._running.copy()
+        return self._slots.running.copy()
 
     def is_running(self, slot: int) -> bool:
-        return bool(self._running[slot])
+        return bool(self._slots.running[slot])
 
     def start(self, slots: Sequence[int], seeds: Sequence[int]) -> None:
         """Start new episodes in `slots`, with these scene seeds, in one new lockstep."""
         slots = np.asarray(slots, dtype=np.int64)
         scenes = [load_scene(self.scene, {**self.overrides, "simulation.seed": int(seed)}) for seed in seeds]
         group = Group(Lockstep(scenes, nthread=self.nthread, observe=False), slots)
-        for slot in slots:
-            self._leave(int(slot))
-            self._group_of[slot] = group
-        self._running[slots] = True
-        self._groups.append(group)
-        self.seed[slots] = seeds
+        self._slots.join(group, seeds)
         self.error[slots] = group.loop.path[0][0] - group.loop.q_true
         self._observe(group, group.runs)
 
     def step(self, actions: np.ndarray) -> Outcome:
         """Hold the forces of the (count, 3) actions for one control period in every running slot."""
-        slots = np.flatnonzero(self._running)
+        slots = np.flatnonzero(self._slots.running)
         forces = np.zeros((self.count, 3))
         if len(slots):
             action = np.minimum(np.maximum(np.asarray(actions, dtype=float)[slots], -1.0), 1.0)
-            forces[slots] = self.drive.forces(action, slots, self._q, self._qd, self._qdd_ref[slots])
+            readings = self._readings
+            forces[slots] = self.drive.forces(action, slots, readings.q, readings.qd, readings.qdd_ref[slots])
         outcome = Outcome(np.zeros(self.count), np.zeros(self.count, dtype=bool),
                           np.zeros(self.count, dtype=bool), {})
         with mujoco_warnings():  # MuJoCo neither prints nor writes a log; a failure ends the run
-            for group in list(self._groups):
+            for group in list(self._slots.groups):
                 self._advance(group, forces, outcome)
         return outcome
 
@@ -182,8 +169,8 @@ class Episodes:
         """`step` for one slot, running, under its (3,) float action (`as_action`): (reward,
         terminated, truncated, why it ended or None), the numbers `step` gives. ValueError naming
         the element if the action is not finite."""
-        loop = self._groups[0].loop
-        force = self.drive.force_one(action, self._q, self._qd, self._qdd_ref)
+        loop, readings = self._slots.groups[0].loop, self._readings
+        force = self.drive.force_one(action, readings.q, readings.qd, readings.qdd_ref)
         if force is None:
             checked_actions(action, (3,), self.where)  # raises, naming the element
         with mujoco_warnings():  # MuJoCo neither prints nor writes a log; a failure ends the run
@@ -194,19 +181,19 @@ class Episodes:
         failed = bool(loop.failures)
         status = kernels.finish_one(loop.q_true, failed, q_desired, qd_desired, qdd_desired,
                                     min(k, loop.samples - 1), q_measured, qd_measured, k * loop.period,
-                                    self._constants, self._state, self._outside, self.observation)
-        reward = float(self._state[kernels.REWARD])
+                                    self._constants, readings.state, readings.outside, readings.observation)
+        reward = float(readings.state[kernels.REWARD])
         if self.instruments and not (failed or status & kernels.NOT_FINITE):  # observed as finish_one observes
-            self.scales.observe_instruments_one(loop, self._instruments_one)
+            self.scales.observe_instruments_one(loop, readings.instruments_one)
         if not (status or failed or loop.done or k == self.limit):
             return reward, False, False, None
-        self._leave(0)
+        self._slots.leave(0)
         if failed or status & kernels.NOT_FINITE:
             return reward, False, True, f"diverged: {loop.failures.get(0, 'non-finite state')}"
         if loop.done:
             return reward, True, False, "path end"
         if status & kernels.OUTSIDE:
-            return reward, False, True, _left(loop.q_true[0], self._outside)
+            return reward, False, True, _left(loop.q_true[0], readings.outside)
         return reward, False, True, TIME_LIMIT
 
     def _advance(self, group: Group, forces: np.ndarray, outcome: Outcome) -> None:
@@ -243,7 +230,7 @@ class Episodes:
                 outcome.ended[slot] = _left(q[i], outside[i])
             else:
                 outcome.ended[slot] = TIME_LIMIT
-            self._leave(slot)
+            self._slots.leave(slot)
 
     def _observe(self, group: Group, runs: np.ndarray) -> None:
         """Measure the lockstep (once a period, for all its runs) and observe `runs`."""
@@ -252,26 +239,16 @@ class Episodes:
         k = min(loop.k, loop.samples - 1)  # past the path's end the reference is its end point
         q_desired, qd_desired, qdd_desired = loop.path
         slots = group.slots[runs]
-        self._q[slots], self._qd[slots], self._qdd_ref[slots] = q[runs], qd[runs], qdd_desired[k]
-        self.elapsed[slots] = loop.k * loop.period
+        readings = self._readings
+        readings.q[slots], readings.qd[slots], readings.qdd_ref[slots] = q[runs], qd[runs], qdd_desired[k]
+        readings.elapsed[slots] = loop.k * loop.period
         scales = self.scales
         observation = np.empty((len(runs), scales.size), dtype=np.float32)
         observe(q[runs], qd[runs], q_desired[k], qd_desired[k], qdd_desired[k], loop.k * loop.period,
                 scales.offset, scales.divisor, OBSERVATION_LIMIT, observation)
         if self.instruments:
             scales.observe_instruments(loop, runs, observation[:, INSTRUMENTS])
-        self.observation[slots] = observation
-
-    def _leave(self, slot: int) -> None:
-        """End `slot`'s episode: its run stays behind in its lockstep, dropped once none is live."""
-        group = self._group_of[slot]
-        if group is None:
-            return
-        group.leave(slot)
-        self._group_of[slot] = None
-        self._running[slot] = False
-        if not len(group.runs):
-            self._groups.remove(group)
+        readings.observation[slots] = observation
 
 
 def _left(q: np.ndarray, outside: np.ndarray) -> str:

@@ -23,7 +23,7 @@ import numpy as np
 
 from bwr_twin.errors import EnvelopeError, ModelError, UnreachableError
 from bwr_twin.model.dynamics import ChainDynamics
-from bwr_twin.model.instruments import read_instruments
+from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec, read_instruments
 from bwr_twin.model.scanner import Scanner, read_scanners
 from bwr_twin.model.shapes import read_collision_shapes
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
@@ -119,6 +119,33 @@ class Wheel:
         return np.pi * self.diameter * self.discharges_per_minute / self.buckets / 60.0
 
 
+@dataclass(frozen=True)
+class Limits:
+    """How far and how fast the machine may move: what the drives and the file's ratings allow.
+
+    joint_range: (3, 2) mechanical end stops (inf where a joint is unlimited).
+    envelope: (3, 2) operating envelope per axis, [low, high] in m and rad.
+    drive_limits: (3, 2) generalised force limits of the drives in N and N m (inf if none).
+    rated_speed: (3,) the drives' rated speeds in m/s and rad/s (inf where the file gives none).
+    """
+
+    joint_range: np.ndarray
+    envelope: np.ndarray
+    drive_limits: np.ndarray
+    rated_speed: np.ndarray
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """The instruments the file's sites and `<custom>` numerics describe: the 2D laser scanners
+    (bwr_twin.model.scanner; () if none) and the rate instruments (bwr_twin.model.instruments,
+    each None if the file has none)."""
+
+    scanners: tuple[Scanner, ...]
+    belt_scale: BeltScaleSpec | None
+    wheel_motor: WheelMotorSpec | None
+
+
 class Machine:
     """A compiled reclaimer model with its geometry, envelope and kinematics.
 
@@ -141,6 +168,8 @@ class Machine:
             (bwr_twin.model.instruments), each None if it has none.
         collision_shapes: its collision geoms (group 5, `collision_<part>`,
             bwr_twin.model.shapes); () if it has none.
+        limits, sensors: the records that hold joint_range, envelope, drive_limits, rated_speed
+            (`Limits`) and scanners, belt_scale, wheel_motor (`Sensors`), which read through them.
     """
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
@@ -156,23 +185,50 @@ class Machine:
         self.actuator_ids = self._check_actuators()
         self.cp_site = self._cp_site()
         self.geometry = self._derive_geometry()
-        self.joint_range = np.array(
+        joint_range = np.array(
             [
                 self.model.jnt_range[j] if self.model.jnt_limited[j] else (-np.inf, np.inf)
                 for j in self.joint_ids
             ]
         )
-        self.envelope = self._read_envelope()
-        self.drive_limits = self._drive_limits()
+        envelope = self._read_envelope(joint_range)
+        drive_limits = self._drive_limits()
         self.wheel = self._read_wheel()
         rail_clearance = self._numeric(RAIL_CLEARANCE_KEY)
         self.rail_clearance = float(rail_clearance[0]) if rail_clearance is not None else 0.0
-        self.rated_speed = self._read_rated_speed()
+        self.limits = Limits(joint_range, envelope, drive_limits, self._read_rated_speed())
         self.identification = {key: text for key in IDENTIFICATION_KEYS if (text := self._text(key)) is not None}
         self.name = self.model.names[:self.model.names.index(b"\0")].decode()
-        self.scanners: tuple[Scanner, ...] = read_scanners(self.model, self.path)
-        self.belt_scale, self.wheel_motor = read_instruments(self.model, self.path)
+        self.sensors = Sensors(read_scanners(self.model, self.path), *read_instruments(self.model, self.path))
         self.collision_shapes = read_collision_shapes(self.model, self.path, int(self.model.site_bodyid[self.cp_site]))
+
+    @property
+    def joint_range(self) -> np.ndarray:
+        return self.limits.joint_range
+
+    @property
+    def envelope(self) -> np.ndarray:
+        return self.limits.envelope
+
+    @property
+    def drive_limits(self) -> np.ndarray:
+        return self.limits.drive_limits
+
+    @property
+    def rated_speed(self) -> np.ndarray:
+        return self.limits.rated_speed
+
+    @property
+    def scanners(self) -> tuple[Scanner, ...]:
+        return self.sensors.scanners
+
+    @property
+    def belt_scale(self) -> BeltScaleSpec | None:
+        return self.sensors.belt_scale
+
+    @property
+    def wheel_motor(self) -> WheelMotorSpec | None:
+        return self.sensors.wheel_motor
 
     def physics_model(self, timestep: float | None = None, *, rigid_body_only: bool = False,
                       neighbour: Path | None = None) -> mujoco.MjModel:
@@ -292,8 +348,8 @@ class Machine:
         adr, size = m.text_adr[n], m.text_size[n]
         return m.text_data[adr : adr + size].rstrip(b"\0").decode()
 
-    def _read_envelope(self) -> np.ndarray:
-        envelope = self.joint_range.copy()
+    def _read_envelope(self, joint_range: np.ndarray) -> np.ndarray:
+        envelope = joint_range.copy()
         for j, axis in enumerate(AXES):
             key = ENVELOPE_KEY.format(axis=axis)
             values = self._numeric(key)

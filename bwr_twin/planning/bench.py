@@ -21,7 +21,7 @@ with a SceneError before anything is simulated.
 from __future__ import annotations
 
 import functools
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +71,7 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
     machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
     where = f"{scene.path}: [reclaim]"
     planner = _Planner(reclaim, machine, None, scene.stockpile.bulk_density, scene.simulation.control_period, where)
-    moves, q = [], planner.start
+    moves, q = [], planner.start.q
     for i, (travel, slew, luff) in enumerate(reclaim.survey.waypoints):
         waypoint = np.array([travel, np.radians(slew), np.radians(luff)])
         try:
@@ -86,7 +86,8 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
         raise SceneError(f"{where}: 'stop.time' = {reclaim.stop.time:g} s ends within the survey, which takes "
                          f"{duration:.1f} s through its {len(moves)} waypoints ([reclaim.survey]); a stop "
                          "time counts from the run's start and must come after the survey's end")
-    return BenchPlan(tuple(moves), planner.start, planner.law, planner.acceleration, planner.rated, None, (),
+    limits = planner.limits
+    return BenchPlan(tuple(moves), planner.start.q, planner.law, limits.acceleration, limits.rated, None, (),
                      scene.stockpile.bulk_density, duration, duration + planner.period)
 
 
@@ -121,6 +122,24 @@ def _plan(reclaim: ReclaimSection, stockpile: StockpileSection, mjcf: Path, payl
                     None if start is None else np.array(start), elapsed, stockpile.angle_of_repose).plan()
 
 
+@dataclass(frozen=True)
+class MoveLimits:
+    """How the machine may move while it reclaims: (3,) accelerations (m/s^2, rad/s^2) and rated
+    speeds (m/s, rad/s) of travel, slew and luff, and the slew's (low, high) limits (rad)."""
+
+    acceleration: np.ndarray
+    rated: np.ndarray
+    slew_limits: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class _Start:
+    """Where a plan starts (3,) and how a refusal names it: 'start' or a survey's last waypoint."""
+
+    q: np.ndarray
+    name: str
+
+
 class _Planner:
     def __init__(self, settings: ReclaimSection, machine: Machine, surface: Surface | None, density: float,
                  period: float, where: str, start: np.ndarray | None = None, elapsed: float = 0.0,
@@ -137,20 +156,19 @@ class _Planner:
         if wheel is None:
             raise SceneError(f"{where}: {machine.path.name} describes no bucket wheel: it cannot reclaim")
         self.wheel = wheel
-        self.acceleration = np.array([settings.acceleration[0], *np.radians(settings.acceleration[1:])])
-        self.rated = machine.rated_speed
-        self.slew_limits = tuple(np.radians(settings.slew_limits))
-        self.start = np.array([settings.start[0], *np.radians(settings.start[1:])]) if start is None else start
-        self.start_name = "'start'" if start is None else "the survey's last waypoint"
+        self.limits = MoveLimits(np.array([settings.acceleration[0], *np.radians(settings.acceleration[1:])]),
+                                 machine.rated_speed, tuple(np.radians(settings.slew_limits)))
+        self.start = (_Start(np.array([settings.start[0], *np.radians(settings.start[1:])]), "'start'")
+                      if start is None else _Start(start, "the survey's last waypoint"))
         self._check_settings()
         self.law = SpeedLaw(settings.target_rate * KG_PER_T / SECONDS_PER_HOUR / density, settings.speed_law,
-                            np.radians(settings.cap_angle), float(self.rated[1]))
+                            np.radians(settings.cap_angle), float(self.limits.rated[1]))
         if surface is None:
             return
         self.dig = Cutter(surface, wheel, 1, angle_of_repose)  # the planner's copy of the pile, dug as it plans
         self.top = float(surface.z.max())
         g = machine.geometry
-        cp0 = machine.fk(self.start)
+        cp0 = machine.fk(self.start.q)
         centre = float(np.average(surface.x, weights=np.maximum(surface.z, 0).sum(axis=0) + 1e-12))
         self.ahead = 1.0 if centre >= cp0[0] else -1.0  # the travel's direction into the pile
         self.slew_axis = np.array(g.slew_axis_xy)
@@ -178,12 +196,12 @@ class _Planner:
             raise SceneError(f"{where}: 'cut_depth' {s.cut_depth:g} m is more than the wheel's radius "
                              f"{wheel.radius:g} m")
         low, high = machine.envelope[1]
-        for value, label in zip(self.slew_limits, ("low", "high")):
+        for value, label in zip(self.limits.slew_limits, ("low", "high")):
             if not low - 1e-9 <= value <= high + 1e-9:
                 raise SceneError(f"{where}: 'slew_limits' ({label}) {np.degrees(value):g} deg is outside the slew "
                                  f"envelope [{describe(1, low)}, {describe(1, high)}] of {machine.path.name}")
         try:
-            machine.check_envelope(self.start, label="'start'")
+            machine.check_envelope(self.start.q, label="'start'")
         except EnvelopeError as exc:
             raise SceneError(f"{where}: {exc}") from None
         self._check_drives()
@@ -191,14 +209,14 @@ class _Planner:
     def _check_drives(self) -> None:
         """The references' accelerations, held against gravity at the start, within each drive's rating."""
         machine, where = self.machine, self.where
-        mass, biases = machine.dynamics.at(self.start, np.zeros(3))
+        mass, biases = machine.dynamics.at(self.start.q, np.zeros(3))
         for j, axis in enumerate(AXES):
-            need = mass[j, j] * self.acceleration[j]
+            need = mass[j, j] * self.limits.acceleration[j]
             low, high = machine.drive_limits[j]
             bias = biases[j]
             if bias + need > high or bias - need < low:
                 unit, force = ("m/s2", "N") if j == 0 else ("deg/s2", "N m")
-                shown = self.acceleration[j] if j == 0 else np.degrees(self.acceleration[j])
+                shown = self.limits.acceleration[j] if j == 0 else np.degrees(self.limits.acceleration[j])
                 held = f" on top of {abs(bias):.3g} {force} against gravity" if abs(bias) > 1e-6 * need else ""
                 raise SceneError(
                     f"{where}: 'acceleration' ({axis}) {shown:g} {unit} needs {need:.3g} {force}{held} at 'start', "
@@ -211,7 +229,7 @@ class _Planner:
         s = self.s
         segments: list[Move | Pass] = []
         volumes: list[float] = []
-        q = self.start
+        q = self.start.q
         nominal = 0.0
         stop = s.stop
         bench = 0
@@ -238,13 +256,14 @@ class _Planner:
             q = end_of(bench_segments[-1])
             bench += 1
         low_trim = s.rate_control.trim_limits[0]
-        ramp = self._fastest(self.start[2]) / self.acceleration[1]  # s to reach or leave the fastest slew
+        ramp = self._fastest(self.start.q[2]) / self.limits.acceleration[1]  # s to reach or leave the fastest slew
         longest = sum(x.duration if isinstance(x, Move) else self._nominal_time(x) / low_trim + 2 * ramp
                       for x in segments)
         if stop.time is not None:
             longest = min(longest, stop.time + ramp + self.period)
             nominal = min(nominal, stop.time)
-        return BenchPlan(tuple(segments), self.start, self.law, self.acceleration, self.rated, self.first_contact,
+        limits = self.limits
+        return BenchPlan(tuple(segments), self.start.q, self.law, limits.acceleration, limits.rated, self.first_contact,
                          tuple(volumes), self.density, nominal, longest + self.period)
 
     def _nothing_left(self, bench: int) -> str:
@@ -276,7 +295,7 @@ class _Planner:
         if not windows:
             return None
         travels = travels[: len(windows)]
-        ascending = abs(q[1] - self.slew_limits[0]) <= abs(q[1] - self.slew_limits[1])
+        ascending = abs(q[1] - self.limits.slew_limits[0]) <= abs(q[1] - self.limits.slew_limits[1])
         # Each pass turns beyond the edges of both passes that meet there.
         margin = self._margin(luff)
         turns = []
@@ -287,7 +306,7 @@ class _Planner:
                 turn = min(w[0] for w in near) - margin
             else:
                 turn = max(w[1] for w in near) + margin
-            turns.append(float(np.clip(turn, *self.slew_limits)))
+            turns.append(float(np.clip(turn, *self.limits.slew_limits)))
         segments: list[Move | Pass] = []
         volume = 0.0
         # Onto the bench: from the last bench, slew clear, then travel and luff together.
@@ -363,7 +382,7 @@ class _Planner:
     def _margin(self, luff: float) -> float:
         """rad beyond a pass's cut: room to reach the fastest speed, and the wheel's clearance
         (the MJCF's 'wheel_clearance')."""
-        return self._fastest(luff) ** 2 / (2 * self.acceleration[1]) + self.wheel.clearance / self._radius(luff)
+        return self._fastest(luff) ** 2 / (2 * self.limits.acceleration[1]) + self.wheel.clearance / self._radius(luff)
 
     def _arc(self, travel: float, luff: float, start: float, end: float, step: float) -> tuple[np.ndarray, np.ndarray]:
         """Joint values (n, 3) and CP (n, 3) along a slew from start to end, the wheel moving `step` m apart."""
@@ -375,7 +394,7 @@ class _Planner:
 
     def _probe(self, travel: float, luff: float) -> np.ndarray:
         """Slew angles across the slew limits at which the wheel would cut the planner's pile (not dug)."""
-        q, cp = self._arc(travel, luff, *self.slew_limits, PROBE_STEP)
+        q, cp = self._arc(travel, luff, *self.limits.slew_limits, PROBE_STEP)
         probe = Cutter(Surface(self.surface.x, self.surface.y, self.dig.heights[0]), self.wheel, 1)
         cutting = np.zeros(len(q), dtype=bool)
         for i in range(len(q)):
@@ -390,10 +409,10 @@ class _Planner:
         """The travel at which a slew across the limits first touches the pile: clear behind it,
         in the pile ahead of it; None if the wheel meets no pile along the envelope."""
         low, high = self.machine.envelope[0]
-        clear = float(self.start[0])
+        clear = float(self.start.q[0])
         if self._window(clear, luff) is not None:
             raise SceneError(
-                f"{self.where}: at {self.start_name} travel {clear:g} m the wheel would already cut the pile on bench "
+                f"{self.where}: at {self.start.name} travel {clear:g} m the wheel would already cut the pile on bench "
                 f"{bench + 1}: start farther from the pile"
             )
         deep = clear
@@ -465,8 +484,8 @@ class _Planner:
         cubic's top speed is 1.5 x delta / T and its top acceleration 6 x delta / T^2."""
         delta = np.abs(end - start)
         with np.errstate(divide="ignore", invalid="ignore"):
-            duration = max(MIN_MOVE, float(np.max(np.nan_to_num(1.5 * delta / self.rated))),
-                           float(np.max(np.sqrt(6 * delta / self.acceleration))))
+            duration = max(MIN_MOVE, float(np.max(np.nan_to_num(1.5 * delta / self.limits.rated))),
+                           float(np.max(np.sqrt(6 * delta / self.limits.acceleration))))
         duration = np.ceil(duration / self.period - 1e-9) * self.period
         return Move(start.copy(), end.copy(), float(duration), bench, kind)
 
@@ -475,7 +494,7 @@ class _Planner:
             return segment.duration
         angles = np.linspace(segment.start, segment.end, 400)
         speeds = np.minimum([self.law.speed(segment, a) for a in angles], self.law.rated)
-        ramp = speeds.max() / self.acceleration[1]  # s: speeding up and braking take about one ramp more
+        ramp = speeds.max() / self.limits.acceleration[1]  # s: speeding up and braking take about one ramp more
         return float(np.trapezoid(1.0 / speeds, angles) * segment.direction) + ramp
 
 

@@ -85,8 +85,8 @@ class BenchReference:
 
     def __init__(self, plan: BenchPlan, runs: int, period: float, fk: Callable[[np.ndarray], np.ndarray]):
         """`fk` maps joint values to the CP, for the waypoints."""
-        self.plan, self.runs, self.period, self._fk = plan, runs, period, fk
-        self.start = plan.start
+        self._plan = _PlanInFloats(plan)
+        self.runs, self.period = runs, period
         self.samples = int(np.ceil(plan.longest_duration / period - 1e-9)) + 1
         self.time = np.arange(self.samples) * period
         self.q = np.repeat(plan.start[None], runs, axis=0)
@@ -97,17 +97,24 @@ class BenchReference:
         self.finished = np.zeros(runs, dtype=bool)
         self.k = 0
         self._elapsed = [0.0] * runs  # s into the current move
-        self.stopping = np.zeros(runs, dtype=bool)
-        # each move's ends as Python floats, by segment index
-        self._ends = {i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments) if isinstance(s, Move)}
-        # (time, q, name) at each segment's start, and at the end
-        self._started = [[(0.0, plan.start.copy(), segment_stage(plan, 0))] for _ in range(runs)]
-        self._slew_acceleration = float(plan.acceleration[SLEW])
-        self._top = float(plan.rated_speed[SLEW])
-        self._trim = [1.0] * runs
-        self._pace = [1.0] * runs  # an interlock's: the share of its pace each run follows its plan at
+        self._orders = Orders(runs)
+        self._log = SegmentLog(plan, runs, fk)
         for run in range(runs):
             self._plan_period(run)
+
+    @property
+    def plan(self) -> BenchPlan:
+        return self._plan.plan
+
+    @property
+    def start(self) -> np.ndarray:
+        """(3,) where every run starts: the start of the plan it was made with."""
+        return self._plan.start
+
+    @property
+    def stopping(self) -> np.ndarray:
+        """(runs,) bool: the runs told to end their plan."""
+        return self._orders.stopping
 
     def phase(self) -> Phase:
         """Where every run stands in its plan this period."""
@@ -126,17 +133,14 @@ class BenchReference:
         """Every run has finished the plan it followed (a survey) and rests: go on with `plan`,
         whose segments begin with that plan's. `samples` grows by the most the new segments may take."""
         first = len(self.plan.segments)
-        self.plan = plan
-        self._ends.update({i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments)
-                           if isinstance(s, Move) and i >= first})
+        self._plan.extend(plan, first)
         stage = segment_stage(plan, first)
         for run in range(self.runs):
             self.finished[run] = False
             self.segment[run] = first
             self.bench[run] = plan.segments[first].bench
             self._elapsed[run] = 0.0
-            time, at, _ = self._started[run][-1]
-            self._started[run][-1] = (time, at, stage)
+            self._log.rename_last(run, stage)
             self._plan_period(run)
         before = sum(segment.duration for segment in plan.segments[:first])  # moves alone
         self.samples = self.k + int(np.ceil((plan.longest_duration - before) / self.period - 1e-9)) + 1
@@ -154,12 +158,8 @@ class BenchReference:
         on, `stop` (runs,) bool ends a run's plan: a pass brakes to rest, a move is completed;
         `pace` (runs,) in [0, 1], an interlock's, slows the plan: a move's time runs at it (its
         velocity and acceleration scaled), a pass's speed law is scaled by it and braked to."""
-        if trim is not None:
-            self._trim = np.asarray(trim, dtype=float).tolist()
-        if pace is not None:
-            self._pace = np.asarray(pace, dtype=float).tolist()
-        if stop is not None:
-            self.stopping |= stop
+        orders = self._orders
+        orders.take(trim, stop, pace)
         self.k += 1
         dt = self.period
         for run in range(self.runs):
@@ -168,7 +168,7 @@ class BenchReference:
             index = self.segment.item(run)
             segment = self.plan.segments[index]
             if isinstance(segment, Move):
-                self._elapsed[run] += dt * self._pace[run]
+                self._elapsed[run] += dt * orders.pace[run]
                 if self._elapsed[run] >= segment.duration - 1e-9:
                     self._next(run, segment.end)
             else:
@@ -176,7 +176,7 @@ class BenchReference:
                 slew = q + qd * dt + 0.5 * qdd * dt**2
                 speed = qd + qdd * dt
                 self.q[run, SLEW], self.qd[run, SLEW] = slew, speed
-                stopping = self.stopping.item(run)
+                stopping = orders.stopping.item(run)
                 there = (segment.end - slew) * segment.direction <= END_TOLERANCE  # never past it
                 if there or (stopping and speed == 0.0):
                     self.q[run, SLEW] = segment.end if not stopping else slew
@@ -196,17 +196,17 @@ class BenchReference:
             self.segment[run] = len(self.plan.segments)
         else:
             self.bench[run] = self.plan.segments[self.segment[run]].bench
-        self._started[run].append((self.k * self.period, at.copy(), segment_stage(self.plan, self.segment[run])))
+        self._log.begin(run, self.k * self.period, at, segment_stage(self.plan, self.segment[run]))
 
     def _plan_period(self, run: int) -> None:
         """The reference of the current period for run `run`, within its segment."""
-        index = self.segment.item(run)
-        segment = self.plan.segments[index]
+        index, plan, orders = self.segment.item(run), self._plan, self._orders
+        segment = plan.plan.segments[index]
         if isinstance(segment, Move):
-            start, end = self._ends[index]
+            start, end = plan.ends[index]
             s = min(max(self._elapsed[run] / segment.duration, 0.0), 1.0)  # as Move.sample
             q, qd, qdd = self.q, self.qd, self.qdd
-            pace = self._pace[run]
+            pace = orders.pace[run]
             for j in range(3):
                 q[run, j], qd[run, j], qdd[run, j] = rest_to_rest(start[j], end[j], segment.duration, s)
                 if pace != 1.0:
@@ -214,19 +214,19 @@ class BenchReference:
                     qdd[run, j] *= pace * pace
             return
         slew, speed = self.q.item(run, SLEW), self.qd.item(run, SLEW)
-        direction, a, dt = segment.direction, self._slew_acceleration, self.period
-        stopping = self.stopping.item(run)
+        direction, a, dt = segment.direction, plan.slew_acceleration, self.period
+        stopping = orders.stopping.item(run)
         if stopping:
             wanted = 0.0
         else:
             remaining = max((segment.end - slew) * direction, 0.0)
-            law = self.plan.law.speed(segment, slew) * self._trim[run] * self._pace[run]
+            law = plan.plan.law.speed(segment, slew) * orders.trim[run] * orders.pace[run]
             # The fastest speed v at the period's end from which braking by a dt a period still
             # stops at the pass's end: this period's (|qd| + v) dt / 2 and then at most
             # v^2 / 2a + v dt / 2 of braking fit in what remains.
             rest = remaining - 0.5 * abs(speed) * dt
             brake = math.sqrt((a * dt) ** 2 + 2.0 * a * max(rest, 0.0)) - a * dt
-            wanted = min(law, self._top, brake)
+            wanted = min(law, plan.top_speed, brake)
             # Land on the end: never step past it within this period.
             wanted = min(wanted, 2.0 * remaining / dt - abs(speed))
             wanted = max(wanted, 0.0)
@@ -239,9 +239,70 @@ class BenchReference:
     def waypoints(self, run: int) -> tuple[Trajectory, list[Stage]]:
         """Where run `run` began each segment (and where it ended), its reclaim as via points,
         and their stages (`segment_stage`)."""
+        now = None if self.finished[run] else (self.k * self.period, self.q[run].copy())
+        return self._log.waypoints(run, now)
+
+
+class _PlanInFloats:
+    """The bench plan as a period's arithmetic reads it: each move's ends and the slew's limits as
+    Python floats (numpy on scalars costs a microsecond an operation)."""
+
+    def __init__(self, plan: BenchPlan):
+        self.plan, self.start = plan, plan.start
+        # each move's ends as Python floats, by segment index
+        self.ends = {i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments) if isinstance(s, Move)}
+        self.slew_acceleration = float(plan.acceleration[SLEW])
+        self.top_speed = float(plan.rated_speed[SLEW])
+
+    def extend(self, plan: BenchPlan, first: int) -> None:
+        """Go on with `plan`, whose segments before `first` are this plan's."""
+        self.plan = plan
+        self.ends.update({i: (s.start.tolist(), s.end.tolist()) for i, s in enumerate(plan.segments)
+                          if isinstance(s, Move) and i >= first})
+
+
+class Orders:
+    """What the loop asks of each run's reference: the rate trim on the speed law, an
+    interlock's pace (the share of its pace each run follows its plan at) and whether to stop."""
+
+    def __init__(self, runs: int):
+        self.trim = [1.0] * runs
+        self.pace = [1.0] * runs
+        self.stopping = np.zeros(runs, dtype=bool)
+
+    def take(self, trim: np.ndarray | None, stop: np.ndarray | None, pace: np.ndarray | None) -> None:
+        """From now on: `trim` and `pace` (runs,) where given; `stop` (runs,) bool adds to the stopping."""
+        if trim is not None:
+            self.trim = np.asarray(trim, dtype=float).tolist()
+        if pace is not None:
+            self.pace = np.asarray(pace, dtype=float).tolist()
+        if stop is not None:
+            self.stopping |= stop
+
+
+class SegmentLog:
+    """Where each run began each segment of its plan, and its stage: the via points a replay shows."""
+
+    def __init__(self, plan: BenchPlan, runs: int, fk: Callable[[np.ndarray], np.ndarray]):
+        """`fk` maps joint values to the CP, for the waypoints."""
+        self._fk = fk
+        # (time, q, stage) at each segment's start, and at the end
+        self._started = [[(0.0, plan.start.copy(), segment_stage(plan, 0))] for _ in range(runs)]
+
+    def begin(self, run: int, time: float, at: np.ndarray, stage: Stage) -> None:
+        self._started[run].append((time, at.copy(), stage))
+
+    def rename_last(self, run: int, stage: Stage) -> None:
+        """The run's last segment start begins `stage` instead (a plan continued from its end)."""
+        time, at, _ = self._started[run][-1]
+        self._started[run][-1] = (time, at, stage)
+
+    def waypoints(self, run: int, now: tuple[float, np.ndarray] | None) -> tuple[Trajectory, list[Stage]]:
+        """The run's segment starts as via points and their stages; `now` (time, q), if the run
+        goes on, ends them at the "end" stage."""
         started = list(self._started[run])
-        if not self.finished[run]:
-            started.append((self.k * self.period, self.q[run].copy(), Stage("end")))
+        if now is not None:
+            started.append((*now, Stage("end")))
         times = np.array([t for t, _, _ in started])
         knots = np.array([q for _, q, _ in started])
         # A zero-length segment adds no point; a named stage wins over a move at the same time.

@@ -15,6 +15,7 @@ the colouring shown is kept current; a switch poses every tile once in the other
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,20 +50,15 @@ class PileView(Rooted):
         self._grade: np.ndarray | None = None  # the display grid's top grades as shown, in "grade"
         self._grade_root = None
         self.root = scene.add_frame(name, show_axes=False)  # the tiles' parent: shows or hides the pile
-        ny, nx = z_start.shape
-        step = display_step(z_start.shape)
-        self._rows = samples(ny, step)
-        self._cols = samples(nx, step)
-        self._shown = self._display(z_start)
+        self._grid = grid = DisplayGrid.of(x, y)
+        self._shown = grid.sample(z_start)
         self._start = self._shown.copy()
-        gx, gy = np.meshgrid(x[self._cols], y[self._rows])
-        self._xy = np.stack([gx, gy], axis=-1).astype(np.float32)
         self._tiles = []
-        for r0 in range(0, len(self._rows) - 1, TILE):
-            for c0 in range(0, len(self._cols) - 1, TILE):
-                rows = slice(r0, min(r0 + TILE, len(self._rows) - 1) + 1)
-                cols = slice(c0, min(c0 + TILE, len(self._cols) - 1) + 1)
-                self._tiles.append(_Tile(scene, name, f"{r0}_{c0}", rows, cols, self._xy, self._shown, self._start))
+        for r0 in range(0, len(grid.rows) - 1, TILE):
+            for c0 in range(0, len(grid.cols) - 1, TILE):
+                rows = slice(r0, min(r0 + TILE, len(grid.rows) - 1) + 1)
+                cols = slice(c0, min(c0 + TILE, len(grid.cols) - 1) + 1)
+                self._tiles.append(_Tile(scene, name, f"{r0}_{c0}", rows, cols, grid.xy, self._shown, self._start))
 
     def attach(self, history: PileHistory) -> None:
         self.dug = DugHeights(history)
@@ -76,11 +72,11 @@ class PileView(Rooted):
         """The pile as it was at time t (s): tiles whose samples changed are sent again."""
         if self.dug is None or not self.dug.advance(t):
             return
-        shown = self._display(self.dug.z)
+        shown = self._grid.sample(self.dug.z)
         changed = shown != self._shown
         self._shown = shown
         if self.colour == "grade":
-            grade = self._display(self.dug.grade)
+            grade = self._grid.sample(self.dug.grade)
             changed |= ~((grade == self._grade) | (np.isnan(grade) & np.isnan(self._grade)))
             self._grade = grade
         for tile in self._tiles:
@@ -99,7 +95,7 @@ class PileView(Rooted):
         grading = kind == "grade"
         if grading:
             self._scale = self._scale or scale  # the meshes of the bins keep their colours
-            self._grade = self._display(self.dug.grade)
+            self._grade = self._grid.sample(self.dug.grade)
             if self._grade_root is None:
                 self._grade_root = self.scene.add_frame(f"{self.name}/grade", show_axes=False)
             self._grade_root.visible = True
@@ -111,18 +107,36 @@ class PileView(Rooted):
 
     def _pose(self, tile: _Tile) -> None:
         if self.colour == "grade":
-            tile.update_grade(self._xy, self._shown, self._grade, self._scale)
+            tile.update_grade(self._grid.xy, self._shown, self._grade, self._scale)
         else:
-            tile.update(self._xy, self._shown, self._start)
-
-    def _display(self, z: np.ndarray) -> np.ndarray:
-        return z[np.ix_(self._rows, self._cols)].astype(np.float32)
+            tile.update(self._grid.xy, self._shown, self._start)
 
     @property
     def corners(self) -> np.ndarray:
         """(8, 3) corners of the pile's bounding box, for framing the camera (m)."""
         top = float(self.z_start.max())
         return np.array([(x, y, z) for x in self.x[[0, -1]] for y in self.y[[0, -1]] for z in (0.0, top)])
+
+
+@dataclass(frozen=True)
+class DisplayGrid:
+    """The display grid: the pile's rows and columns it samples (at most MAX_DISPLAY_VERTICES
+    samples) and their (rows, cols, 2) world x, y (m, float32, as the meshes take them)."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    xy: np.ndarray
+
+    @classmethod
+    def of(cls, x: np.ndarray, y: np.ndarray) -> DisplayGrid:
+        step = display_step((len(y), len(x)))
+        rows, cols = samples(len(y), step), samples(len(x), step)
+        gx, gy = np.meshgrid(x[cols], y[rows])
+        return cls(rows, cols, np.stack([gx, gy], axis=-1).astype(np.float32))
+
+    def sample(self, z: np.ndarray) -> np.ndarray:
+        """(rows, cols) float32: the pile's (ny, nx) values on the display grid."""
+        return z[np.ix_(self.rows, self.cols)].astype(np.float32)
 
 
 class DugHeights:

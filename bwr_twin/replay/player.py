@@ -26,30 +26,92 @@ READOUT_PERIOD = 0.1  # s between readout updates while playing
 PLAYER_STOP_WAIT = 5.0  # s for the player's thread to finish its frame when the replay stops
 
 
+class Playhead:
+    """Replay time, kept between the runs' start and end, and whether and how fast it advances;
+    like `Shown`, changed only on the player's thread."""
+
+    def __init__(self, start: float, end: float):
+        self.start, self.end = start, end
+        self.time = start
+        self.playing = False
+        self.speed = float(INITIAL_SPEED)
+
+    def seek(self, t: float) -> None:
+        self.time = min(max(t, self.start), self.end)
+
+    def advance(self, seconds: float) -> None:
+        """Move on by `seconds` of wall time at the speed; stop playing at the end."""
+        self.time = min(self.time + seconds * self.speed, self.end)
+        if self.time >= self.end:
+            self.playing = False
+
+
+class Shown:
+    """What the view shows: which runs, with a run that scanned which pile ("true" or "scanned")
+    and its fan, and with a pile of grade its colours (by "ore" or by its top layer's "grade")."""
+
+    def __init__(self, runs: int):
+        self.runs = [True] * runs
+        self.pile, self.fan = "true", True
+        self.pile_colour = "ore"
+
+
 class Player:
-    """Plays `runs` in `view` and its GUI panel on `server`; commands are safe from any thread."""
+    """Plays `runs` in `view` and its GUI panel on `server`; commands are safe from any thread.
+
+    `time`, `playing`, `speed`, `start` and `end` read its `Playhead`; `shown`, `pile_shown`,
+    `fan_shown` and `pile_colour` what it shows.
+    """
 
     def __init__(self, server: viser.ViserServer, view: SceneView, runs: Sequence[Run]):
         self.server, self.view, self.runs = server, view, list(runs)
-        self.start = min(float(run.recording.plan.time[0]) for run in self.runs)
-        self.end = max(float(run.recording.plan.time[-1]) for run in self.runs)
-        self.time = self.start
-        self.playing = False
-        self.speed = float(INITIAL_SPEED)
-        self.shown = [True] * len(self.runs)
-        self.pile_shown, self.fan_shown = "true", True  # with a run that scanned: which pile, and its fan
-        self.pile_colour = "ore"  # with a pile of grade: by ore or by its top layer's grade
+        self._head = Playhead(min(float(run.recording.plan.time[0]) for run in self.runs),
+                              max(float(run.recording.plan.time[-1]) for run in self.runs))
+        self._shown = Shown(len(self.runs))
         self._actions: queue.Queue[Callable[[], None]] = queue.Queue()
         self._stopped = threading.Event()
         self.panel = Panel(server, self.runs, self, scanning=view.scanning, grade=view.grade_scale)
-        self.play_button, self.time_slider, self.speed_slider = (
-            self.panel.play_button, self.panel.time_slider, self.panel.speed_slider)
-        self.readout = self.panel.readout
         self._readout_at = float("-inf")  # wall time of the last readout
         self._scene_shows = self._readout_shows = None  # the replay times they show
         self._draw(time.perf_counter())
         self._thread = threading.Thread(target=self._run, name="replay-player", daemon=True)
         self._thread.start()
+
+    @property
+    def start(self) -> float:
+        return self._head.start
+
+    @property
+    def end(self) -> float:
+        return self._head.end
+
+    @property
+    def time(self) -> float:
+        return self._head.time
+
+    @property
+    def playing(self) -> bool:
+        return self._head.playing
+
+    @property
+    def speed(self) -> float:
+        return self._head.speed
+
+    @property
+    def shown(self) -> list[bool]:
+        return self._shown.runs
+
+    @property
+    def pile_shown(self) -> str:
+        return self._shown.pile
+
+    @property
+    def fan_shown(self) -> bool:
+        return self._shown.fan
+
+    @property
+    def pile_colour(self) -> str:
+        return self._shown.pile_colour
 
     # -- commands: safe from any thread, applied by the player's thread between frames ----------
 
@@ -90,54 +152,57 @@ class Player:
         self._actions.put(lambda: self._colour_pile(kind))
 
     def _show_pile(self, kind: str) -> None:
-        if kind == self.pile_shown:
+        shown = self._shown
+        if kind == shown.pile:
             return
-        self.pile_shown = kind
+        shown.pile = kind
         with self.server.atomic():  # the pile shown now arrives as it stands at the current time
             self.view.show_pile(kind)
             self.view.show(self.time)
-            self.panel.show_scanner(kind, self.fan_shown)
+            self.panel.show_scanner(kind, shown.fan)
 
     def _colour_pile(self, kind: str) -> None:
-        if kind == self.pile_colour or self.view.grade_scale is None:
+        if kind == self._shown.pile_colour or self.view.grade_scale is None:
             return
-        self.pile_colour = kind
+        self._shown.pile_colour = kind
         with self.server.atomic():  # every tile in its new colours at once
             self.view.colour_pile(kind)
             self.panel.show_pile_colour(kind)
 
     def _show_fan(self, shown: bool) -> None:
-        if shown == self.fan_shown:
+        if shown == self._shown.fan:
             return
-        self.fan_shown = shown
+        self._shown.fan = shown
         with self.server.atomic():
             self.view.show_fan(shown)
             self.view.show(self.time)
-            self.panel.show_scanner(self.pile_shown, shown)
+            self.panel.show_scanner(self._shown.pile, shown)
 
     def _toggle(self) -> None:
-        if not self.playing and self.time >= self.end:
-            self.time = self.start
-        self._set_playing(not self.playing)
+        head = self._head
+        if not head.playing and head.time >= head.end:
+            head.time = head.start
+        self._set_playing(not head.playing)
 
     def _set_playing(self, playing: bool) -> None:
-        self.playing = playing
+        self._head.playing = playing
         self.panel.show_playing(playing)
 
     def _set_speed(self, speed: float) -> None:
-        self.speed = min(max(float(speed), SPEEDS[0]), SPEEDS[1])
-        self.speed_slider.value = self.speed
+        self._head.speed = min(max(float(speed), SPEEDS[0]), SPEEDS[1])
+        self.panel.speed_slider.value = self._head.speed
 
     def _seek(self, t: float) -> None:
-        self.time = min(max(t, self.start), self.end)
+        self._head.seek(t)
 
     def _show_run(self, k: int, shown: bool) -> None:
-        if self.shown[k] == shown:
+        runs = self._shown.runs
+        if runs[k] == shown:
             return
-        self.shown[k] = shown
+        runs[k] = shown
         with self.server.atomic():
             self.view.set_visible(k, shown)
-            self.panel.show_charts(self.shown)
+            self.panel.show_charts(runs)
         self._scene_shows = self._readout_shows = None  # a run shown again is posed, and read out, now
 
     # -- the loop --------------------------------------------------------------------------------
@@ -153,10 +218,10 @@ class Player:
                 except queue.Empty:
                     break
             now = time.perf_counter()
-            if self.playing:
-                self.time = min(self.time + (now - last) * self.speed, self.end)
-                if self.time >= self.end:
-                    self._set_playing(False)
+            if self._head.playing:
+                self._head.advance(now - last)
+                if not self._head.playing:
+                    self.panel.show_playing(False)
             last = now
             self._draw(now)
 
@@ -166,7 +231,7 @@ class Player:
         if t != self._scene_shows:
             with self.server.atomic():
                 self.view.show(t)
-                self.time_slider.value = t
+                self.panel.time_slider.value = t
             self._scene_shows = t
         if t != self._readout_shows and (not self.playing or now - self._readout_at >= READOUT_PERIOD):
             self.panel.show_readout(t, self.shown, self.end - self.start)

@@ -90,16 +90,15 @@ class ReplayScene:
                            "be drawn in one video; give runs of one machine file")
         pile, side = _pile_at_start(plan)
         history = self.recordings[0].pile  # the solid machine's pile
-        self._dug = DugHeights(history) if history is not None and plan.pile is not None else None
+        dug = history is not None and plan.pile is not None
         drawing = _Drawing(tuple(rgba(ORE_COLOUR)), float(pile.x[1] - pile.x[0])) if pile else None
         self.model = compile_model(plan.machine.path, Edits(
-            stockpile=pile, stockpile_drawing=drawing, stockpile_texture=self._dug is not None,
+            stockpile=pile, stockpile_drawing=drawing, stockpile_texture=dug,
             picture=_Picture(width, height), neighbour=plan.neighbour.path if plan.neighbour is not None else None))
         self.data = [mujoco.MjData(self.model) for _ in self.recordings]
         self.pile_hfield = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_HFIELD, STOCKPILE)
         self.pile_texture = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_TEXTURE, STOCKPILE)
-        self._pile_step = display_step(plan.pile.z.shape) if plan.pile is not None else 1
-        self._pile_start = pile.z if self._dug is not None else None
+        self._pile = DugPile(history, display_step(plan.pile.z.shape), pile.z) if dug else None
         self.pile_changed = False
         self.option = mujoco.MjvOption()
         self.option.geomgroup[:] = 0
@@ -107,16 +106,12 @@ class ReplayScene:
         if pile is not None:  # the pile's group, beside the machine's
             self.option.geomgroup[self.model.geom(STOCKPILE).group[0]] = 1
         self._perturb = mujoco.MjvPerturb()
-        self.camera, self._ground = self._frame(plan, pile, side)
+        self.camera, ground = self._frame(plan, pile, side)
         # Paths drawn to within half a pixel at the scene's middle: dozens of segments, not thousands.
         pixel = 2 * self.camera.distance * np.tan(np.radians(self.model.vis.global_.fovy) / 2) / height
-        self._path = plan.cp_desired[simplified(plan.cp_desired, PATH_TOLERANCE * pixel)]
-        self._trails = [(r.plan.time[kept], r.cp_actual[kept]) for r in self.recordings
-                        for kept in [simplified(r.cp_actual, PATH_TOLERANCE * pixel)]]
-        self._marker = MARKER_SCALE * float(np.linalg.norm(np.ptp(plan.cp_desired, axis=0)) or 1.0)
-        self._line = max(1.0, LINE_WIDTH * height / LINE_LINES)
-        markers = 2 + len(plan.via_points) + len(self._path) + sum(len(t) + 1 for t, _ in self._trails)
-        self.scene = mujoco.MjvScene(self.model, maxgeom=len(self.recordings) * self.model.ngeom + markers)
+        self._markers = Markers(self.recordings, ground, pixel, height)
+        self.scene = mujoco.MjvScene(self.model, maxgeom=len(self.recordings) * self.model.ngeom
+                                     + self._markers.count)
 
     def _frame(self, plan: Plan, pile: Surface | None, side: float) -> tuple[mujoco.MjvCamera, tuple]:
         """A camera that fits the moving machine over the run, the pile and the path; the ground's
@@ -147,12 +142,7 @@ class ReplayScene:
             if instant.neighbour_q is not None:
                 data.qpos[3:6] = instant.neighbour_q
             mujoco.mj_kinematics(self.model, data)  # positions only; no dynamics needed to draw
-        self.pile_changed = self._dug is not None and self._dug.advance(t)
-        if self.pile_changed:
-            z = self._dug.z[:: self._pile_step, :: self._pile_step]
-            set_stockpile_heights(self.model, z)
-            cut = (self._pile_start - z > CUT_SHOWN)[..., None]  # as the browser marks a cut face
-            set_stockpile_colours(self.model, np.where(cut, CUT_COLOUR, ORE_COLOUR))
+        self.pile_changed = self._pile is not None and self._pile.show(t, self.model)
         scene = self.scene
         mujoco.mjv_updateScene(self.model, self.data[0], self.option, None, self.camera,
                                mujoco.mjtCatBit.mjCAT_ALL, scene)
@@ -163,35 +153,8 @@ class ReplayScene:
             for geom in scene.geoms[first:scene.ngeom]:
                 geom.rgba[:] = rgba(run_colour(k), GHOST_OPACITY)
                 geom.transparent = 1
-        self._add_markers(t, instants)
+        self._markers.add(scene, t, instants)
         self._add_sun()
-
-    def _add_markers(self, t: float, instants: list) -> None:
-        """The ground, the desired path, the via points, the target and each run's trail up to t."""
-        ground, half = self._ground
-        self._add(mujoco.mjtGeom.mjGEOM_PLANE, rgba(GROUND_COLOUR), ground, size=(half, half, 1.0))
-        self._polyline(self._path, rgba(DESIRED_COLOUR), self._line)
-        for p in self.recordings[0].plan.via_points:
-            self._add(mujoco.mjtGeom.mjGEOM_SPHERE, rgba(VIA_COLOUR), p, size=(self._marker,) * 3)
-        self._add(mujoco.mjtGeom.mjGEOM_SPHERE, rgba(TARGET_COLOUR), instants[0].cp_desired,
-                  size=(1.5 * self._marker,) * 3)
-        for k, ((time, points), instant) in enumerate(zip(self._trails, instants)):
-            done = int(np.searchsorted(time, t, side="right"))
-            self._polyline(np.concatenate([points[:done], instant.cp_actual[None]]), rgba(run_colour(k)),
-                           2 * self._line)
-
-    def _add(self, kind: int, colour: np.ndarray, position, *, size=(0.0, 0.0, 0.0)) -> mujoco.MjvGeom:
-        geom = self.scene.geoms[self.scene.ngeom]
-        mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(position, float), _IDENTITY,
-                            colour)
-        geom.category = mujoco.mjtCatBit.mjCAT_DECOR
-        self.scene.ngeom += 1
-        return geom
-
-    def _polyline(self, points: np.ndarray, colour: np.ndarray, width: float) -> None:
-        for start, end in itertools.pairwise(points):
-            geom = self._add(mujoco.mjtGeom.mjGEOM_LINE, colour, start)
-            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, width, start, end)
 
     def _add_sun(self) -> None:
         """A directional light from above: the headlight alone leaves surfaces facing up flat."""
@@ -207,6 +170,74 @@ class ReplayScene:
         light.castshadow = 0
         light.headlight = 0
         self.scene.nlight += 1
+
+
+class DugPile:
+    """The pile's hfield as the solid run dug it: its heights on the display grid, and a texture
+    that colours the faces the wheel cut as the browser does."""
+
+    def __init__(self, history, step: int, start: np.ndarray):
+        """`history`: the run's pile frames; `step` the display grid's; `start` its heights on it at t = 0."""
+        self._dug, self._step, self._start = DugHeights(history), step, start
+
+    def show(self, t: float, model: mujoco.MjModel) -> bool:
+        """Set the model's hfield and texture to the pile at time t (s); whether they changed."""
+        if not self._dug.advance(t):
+            return False
+        z = self._dug.z[:: self._step, :: self._step]
+        set_stockpile_heights(model, z)
+        cut = (self._start - z > CUT_SHOWN)[..., None]  # as the browser marks a cut face
+        set_stockpile_colours(model, np.where(cut, CUT_COLOUR, ORE_COLOUR))
+        return True
+
+
+class Markers:
+    """What is drawn beside the machines: the ground, the desired path, the via points, the
+    current target and each run's CP trail, sized for the picture.
+
+    Attributes:
+        count: the most geoms they add to a scene.
+    """
+
+    def __init__(self, recordings: Sequence[Recording], ground: tuple, pixel: float, height: int):
+        """`ground`: its centre and half-size; `pixel`: m a pixel spans at the scene's middle."""
+        plan = recordings[0].plan
+        self._ground, self._via_points = ground, plan.via_points
+        self._path = plan.cp_desired[simplified(plan.cp_desired, PATH_TOLERANCE * pixel)]
+        self._trails = [(r.plan.time[kept], r.cp_actual[kept]) for r in recordings
+                        for kept in [simplified(r.cp_actual, PATH_TOLERANCE * pixel)]]
+        self._marker = MARKER_SCALE * float(np.linalg.norm(np.ptp(plan.cp_desired, axis=0)) or 1.0)
+        self._line = max(1.0, LINE_WIDTH * height / LINE_LINES)
+        self.count = 2 + len(plan.via_points) + len(self._path) + sum(len(t) + 1 for t, _ in self._trails)
+
+    def add(self, scene: mujoco.MjvScene, t: float, instants: list) -> None:
+        """Add them to `scene` as they stand at time t (s), each run's trail up to t."""
+        ground, half = self._ground
+        _add(scene, mujoco.mjtGeom.mjGEOM_PLANE, rgba(GROUND_COLOUR), ground, size=(half, half, 1.0))
+        _polyline(scene, self._path, rgba(DESIRED_COLOUR), self._line)
+        for p in self._via_points:
+            _add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, rgba(VIA_COLOUR), p, size=(self._marker,) * 3)
+        _add(scene, mujoco.mjtGeom.mjGEOM_SPHERE, rgba(TARGET_COLOUR), instants[0].cp_desired,
+             size=(1.5 * self._marker,) * 3)
+        for k, ((time, points), instant) in enumerate(zip(self._trails, instants)):
+            done = int(np.searchsorted(time, t, side="right"))
+            _polyline(scene, np.concatenate([points[:done], instant.cp_actual[None]]), rgba(run_colour(k)),
+                      2 * self._line)
+
+
+def _add(scene: mujoco.MjvScene, kind: int, colour: np.ndarray, position, *,
+         size=(0.0, 0.0, 0.0)) -> mujoco.MjvGeom:
+    geom = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(position, float), _IDENTITY, colour)
+    geom.category = mujoco.mjtCatBit.mjCAT_DECOR
+    scene.ngeom += 1
+    return geom
+
+
+def _polyline(scene: mujoco.MjvScene, points: np.ndarray, colour: np.ndarray, width: float) -> None:
+    for start, end in itertools.pairwise(points):
+        geom = _add(scene, mujoco.mjtGeom.mjGEOM_LINE, colour, start)
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, width, start, end)
 
 
 def _pile_at_start(plan: Plan) -> tuple[Surface | None, float]:

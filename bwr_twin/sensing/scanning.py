@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -108,43 +109,53 @@ class Scanning:
         self.survey = Survey(surface, runs, sum(s.rays for s in scanners))
         # Heights only fall: the top a ray must consider is the pile's first.
         self._grid = grid_of(surface.x, surface.y, surface.z, YARD_FLOOR, float(surface.z.max()))
-        self._noise = [ScanNoise(seeds, i, s.rays) for i, s in enumerate(scanners)]
-        self._directions = [np.ascontiguousarray(s.directions) for s in scanners]
-        self._settings = [np.array([s.max_range, s.noise[0], s.noise[1], s.dropout]) for s in scanners]
+        self._fans = [Fan.of(s, ScanNoise(seeds, i, s.rays)) for i, s in enumerate(scanners)]
         self.logs = [ScanLog(runs, s.rays, keep_scans) for s in scanners]
-        self._due = [0] * len(scanners)  # each scanner's next scan's number (due at number / rate)
-        self._next = [0] * len(scanners)  # the control period it is made at
-        self._soonest = 0
+        self._schedule = ScanSchedule([s.rate for s in scanners], period)
         # Per run: scans made, rays cast, rays that hit, rays that met the pile but were dropped.
         self._counts = np.zeros((runs, 4), dtype=np.int64)
-        self.scans, self.rays, self.hits, self.dropped = self._counts.T
         self._all = np.arange(runs)
+
+    @property
+    def scans(self) -> np.ndarray:
+        return self._counts[:, 0]
+
+    @property
+    def rays(self) -> np.ndarray:
+        return self._counts[:, 1]
+
+    @property
+    def hits(self) -> np.ndarray:
+        return self._counts[:, 2]
+
+    @property
+    def dropped(self) -> np.ndarray:
+        return self._counts[:, 3]
 
     def step(self, k: int, q: np.ndarray, heights: np.ndarray, runs: np.ndarray | None) -> bool:
         """Scan with every scanner due at control period k, the runs' true joint values q (runs, 3)
         at its start, against their piles' heights (runs, ny, nx) m; only the `runs` given (None:
         all). Returns whether any scanned."""
-        if k < self._soonest:
+        schedule = self._schedule
+        if k < schedule.soonest:
             return False
         order = self._all if runs is None else runs
         time = k * self.period
         made = []
         for i, scanner in enumerate(self.scanners):
-            if k < self._next[i]:
+            if not schedule.due(i, k):
                 continue
-            log, mount = self.logs[i], scanner.mount
-            normal, uniform = self._noise[i].at(log.count)
+            log, mount, fan = self.logs[i], scanner.mount, self._fans[i]
+            normal, uniform = fan.noise.at(log.count)
             origin, hits = log.next_scan(time)
-            settings = self._settings[i]
+            settings = fan.settings
             if self._faults is not None and self._faults.active and self._faults.scanner_blinded(k, scanner.name):
                 settings = settings.copy()
                 settings[3] = 1.0  # blinded by dust: every ray that meets the pile returns nothing
             _scan(heights, self._grid, order, q, mount.position, mount.rotation, mount.joints, mount.anchor,
-                  mount.axis, self._directions[i], settings, normal, uniform, origin, hits, self._counts)
+                  mount.axis, fan.directions, settings, normal, uniform, origin, hits, self._counts)
             made.append(hits)
-            self._due[i] = math.floor(time * scanner.rate + _DUE) + 1
-            self._next[i] = math.ceil((self._due[i] / scanner.rate - _DUE) / self.period)
-        self._soonest = min(self._next)
+            schedule.made(i, time)
         if made:
             self.survey.add(time, made[0] if len(made) == 1 else np.concatenate(made, axis=1), order)
         return bool(made)
@@ -171,6 +182,47 @@ class Scanning:
         """Run `run`'s scans, its scanned pile at the end, `time` s, and at the plan's start."""
         return ScanRecord.of(self.scanners, [log.share(run) for log in self.logs], self.surface.x, self.surface.y,
                              self.known(run, time), at_plan)
+
+
+@dataclass(frozen=True)
+class Fan:
+    """What the compiled scan reads of one scanner: its rays' directions in the site's frame,
+    its settings (range m, noise constant m and share, dropout probability) and its noise stream."""
+
+    directions: np.ndarray  # (rays, 3), contiguous
+    settings: np.ndarray  # (4,) max_range, noise constant, noise share, dropout
+    noise: ScanNoise
+
+    @classmethod
+    def of(cls, scanner: Scanner, noise: ScanNoise) -> Fan:
+        return cls(np.ascontiguousarray(scanner.directions),
+                   np.array([scanner.max_range, scanner.noise[0], scanner.noise[1], scanner.dropout]), noise)
+
+
+class ScanSchedule:
+    """When each scanner scans on the control period grid: its n-th scan is due at n / rate s and
+    made at the first period at or after that time.
+
+    Attributes:
+        soonest: the first control period at which any scanner is due.
+    """
+
+    def __init__(self, rates: Sequence[float], period: float):
+        self._rates, self._period = list(rates), period
+        self._due = [0] * len(rates)  # each scanner's next scan's number (due at number / rate)
+        self._next = [0] * len(rates)  # the control period it is made at
+        self.soonest = 0
+
+    def due(self, i: int, k: int) -> bool:
+        """Whether scanner i scans at control period k."""
+        return k >= self._next[i]
+
+    def made(self, i: int, time: float) -> None:
+        """Scanner i scanned at `time` s: on to its next scan."""
+        rate = self._rates[i]
+        self._due[i] = math.floor(time * rate + _DUE) + 1
+        self._next[i] = math.ceil((self._due[i] / rate - _DUE) / self._period)
+        self.soonest = min(self._next)
 
 
 @numba.njit(cache=True)

@@ -11,6 +11,8 @@ depend on which runs share its lockstep.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
@@ -35,6 +37,26 @@ LIMITS = (
 POSITION, VELOCITY, ACCELERATION, FORCE = 0, 3, 6, 9
 
 
+@dataclass(frozen=True)
+class Bounds:
+    """What a run may not do (LIMITS), as the compiled reduction compares: (3, 2) [low, high] per
+    axis of the operating envelope (m, rad), the end stops (m, rad) and the drive limits (N, N m)."""
+
+    drive_limits: np.ndarray
+    envelope: np.ndarray
+    stops: np.ndarray  # the joints' range, less the margin within which a stop counts as reached
+    limited: bool  # whether any drive has a finite limit
+
+    @classmethod
+    def of(cls, drive_limits: np.ndarray, envelope: np.ndarray, end_stops: np.ndarray) -> Bounds:
+        # An end stop is reached within 0.1 % of the joint's range of it: MuJoCo's stops are soft.
+        margin = 1e-3 * np.nan_to_num(end_stops[:, 1] - end_stops[:, 0], posinf=0.0)
+        return cls(drive_limits=np.ascontiguousarray(drive_limits, dtype=float),
+                   envelope=np.ascontiguousarray(envelope, dtype=float),
+                   stops=np.stack([end_stops[:, 0] + margin, end_stops[:, 1] - margin], axis=1),
+                   limited=bool(np.isfinite(drive_limits).any()))
+
+
 class Metrics:
     """The metrics of every run of a lockstep, accumulated block by block.
 
@@ -44,13 +66,8 @@ class Metrics:
 
     def __init__(self, runs: int, drive_limits: np.ndarray, envelope: np.ndarray, end_stops: np.ndarray,
                  period: float):
-        self._limits = np.ascontiguousarray(drive_limits, dtype=float)  # (3, 2), N and N m
+        self._bounds = Bounds.of(drive_limits, envelope, end_stops)
         self._period = period  # s, between samples
-        self._envelope = np.ascontiguousarray(envelope, dtype=float)  # (3, 2), m and rad
-        # An end stop is reached within 0.1 % of the joint's range of it: MuJoCo's stops are soft.
-        margin = 1e-3 * np.nan_to_num(end_stops[:, 1] - end_stops[:, 0], posinf=0.0)
-        self._stops = np.stack([end_stops[:, 0] + margin, end_stops[:, 1] - margin], axis=1)
-        self._limited = bool(np.isfinite(drive_limits).any())
         self._value = np.zeros((runs, 12))  # signed maxima
         self._index = np.zeros((runs, 12), dtype=np.int64)  # and the sample of each
         self._magnitude = np.full((runs, 12), -1.0)
@@ -70,8 +87,9 @@ class Metrics:
         velocities (n + 1, runs, 3) at each period's start and the last one's end, the reference
         (n, runs, 3), or (n, 1, 3) shared by every run, the commanded and applied drive forces
         (n, runs, 3)."""
+        bounds = self._bounds
         _reduce(start, q, qd, q_desired, qd_desired, qdd_desired, command, drive_force, self._period,
-                self._envelope, self._stops, self._limits, self._limited, self._value, self._index,
+                bounds.envelope, bounds.stops, bounds.drive_limits, bounds.limited, self._value, self._index,
                 self._magnitude, self._squares, self._power_sum, self._first, self._saturated,
                 self._position_final)
         self._samples += len(command)
@@ -90,7 +108,7 @@ class Metrics:
         value, index = self._value[run], self._index[run]
         rms = np.sqrt(self._squares[run] / n)
         for j, axis in enumerate(AXES):
-            limit = self._limits[j]
+            limit = self._bounds.drive_limits[j]
             p, v, a, f = POSITION + j, VELOCITY + j, ACCELERATION + j, FORCE + j
             metrics[axis] = {
                 "position_error_max": float(value[p]),

@@ -40,8 +40,9 @@ class Observer:
         if n == 0:
             return
         reference = self._reference(block, n)
-        self.metrics.add_block(start, block.q[: n + 1], block.qd[: n + 1], *reference, block.command[:n],
-                               block.drive_force[:n])
+        period = block.signals
+        self.metrics.add_block(start, block.q[: n + 1], block.qd[: n + 1], *reference, period.command[:n],
+                               period.drive_force[:n])
         self._record(block, n, reference)
 
     def end_at(self, samples: int) -> None:
@@ -55,7 +56,7 @@ class Observer:
     def _reference(self, block: Block, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The block's reference: (n, 1, 3) rows of the shared path, or the runs' own (n, runs, 3)."""
         if self._path is None:
-            return block.q_desired[:n], block.qd_desired[:n], block.qdd_desired[:n]
+            return tuple(rows[:n] for rows in block.signals.reference)
         start = block.start
         return tuple(rows[start : start + n, None, :] for rows in self._path)
 
@@ -71,20 +72,21 @@ class Observer:
         q_desired, qd_desired, qdd_desired = (np.broadcast_to(r[picked], (len(picked), self.runs, 3))
                                               for r in reference)
         qdd = (block.qd[picked + 1] - block.qd[picked]) / self.period
-        values = {"q_desired": q_desired, "q": block.q[picked], "q_measured": block.q_measured[picked],
-                  "qd_desired": qd_desired, "qd": block.qd[picked], "qd_measured": block.qd_measured[picked],
-                  "qdd_desired": qdd_desired, "qdd": qdd, "drive_force_command": block.command[picked],
-                  "drive_force": block.drive_force[picked], "disturbance": block.disturbance[picked]}
+        period = block.signals
+        values = {"q_desired": q_desired, "q": block.q[picked], "q_measured": period.q_measured[picked],
+                  "qd_desired": qd_desired, "qd": block.qd[picked], "qd_measured": period.qd_measured[picked],
+                  "qdd_desired": qdd_desired, "qdd": qdd, "drive_force_command": period.command[picked],
+                  "drive_force": period.drive_force[picked], "disturbance": period.disturbance[picked]}
         for signal in LOOP:  # the schema's signals, each from its rows
             signals[signal.name][at] = values[signal.name]
-        for name, values in block.controller.items():
+        for name, values in period.controller.items():
             signals[name][at] = values[picked]
-        recorder.wind_speed[at] = self._wind_mean + block.gust[picked]
-        if block.reclaim is not None:
-            for name, values in block.reclaim.items():
+        recorder.wind_speed[at] = self._wind_mean + period.gust[picked]
+        if period.reclaim is not None:
+            for name, values in period.reclaim.items():
                 recorder.reclaim[name][at] = values[picked]
-        if block.neighbour is not None:
-            for name, values in block.neighbour.items():
+        if period.neighbour is not None:
+            for name, values in period.neighbour.items():
                 recorder.neighbour[name][at] = values[picked]
         fk = self.machine.fk
         cp_error = np.linalg.norm(fk(q_desired) - fk(block.q[picked]), axis=-1)

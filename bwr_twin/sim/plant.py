@@ -56,23 +56,15 @@ class Plant:
         qpos, qvel, actuator_force = batch.bind("qpos"), batch.bind("qvel"), batch.bind("qfrc_actuator")
         # The machine's joints are the model's first three; a neighbour's the next three.
         self.qpos, self.qvel, self.drive_force = qpos[:, :3], qvel[:, :3], actuator_force[:, :3]
-        self._ctrl = batch.bind("ctrl")
-        self._applied = batch.bind("qfrc_applied")
-        ids = list(machine.actuator_ids)
-        self._actuators = np.array(ids, dtype=np.int64)  # the drives' columns of ctrl, in joint order
-        self._gear = machine.model.actuator_gear[ids, 0].copy()
-        self._bias = batch.bind("qfrc_bias")[:, :3]
+        ctrl = batch.bind("ctrl")
+        self._drives = _Drives(machine, ctrl, batch.bind("qfrc_applied"))
         # A quick stop brakes on each drive's inertia at the start pose, within its limits.
-        self._inertia, self._limits = inertia_at(machine, np.broadcast_to(q0, (runs, 3))[0]), machine.drive_limits
-        self._period = control_period
+        self._quick_stop = _QuickStop(self.qvel, batch.bind("qfrc_bias")[:, :3],
+                                      inertia_at(machine, np.broadcast_to(q0, (runs, 3))[0]),
+                                      machine.drive_limits, control_period)
         self.neighbour = neighbour
-        if neighbour is not None:
-            self.neighbour_q, self.neighbour_qd = qpos[:, 3:6], qvel[:, 3:6]
-            self._neighbour_bias = batch.bind("qfrc_bias")[:, 3:6]
-            own = neighbour.machine
-            self._neighbour_actuators = np.array(own.actuator_ids, dtype=np.int64) + model.nu - own.model.nu
-            self._neighbour_gear = own.model.actuator_gear[list(own.actuator_ids), 0].copy()
-            self.neighbour_q[:] = neighbour.start
+        self._rail = None if neighbour is None else _NeighbourDrive(
+            neighbour, qpos[:, 3:6], qvel[:, 3:6], batch.bind("qfrc_bias")[:, 3:6], model, ctrl)
         substeps = round(control_period / timestep)
         # A control period in calls of at most STEPS_PER_CALL: Ctrl-C is heard between calls.
         whole, rest = divmod(substeps, STEPS_PER_CALL)
@@ -81,14 +73,7 @@ class Plant:
         given = ~np.isnan(parameters.frictionloss).any(axis=1)
         if given.any():
             batch.expand("dof_frictionloss")[given] = parameters.frictionloss[given]
-        windy = parameters.windy
-        self._wind = None
-        if windy.any():
-            batch.expand("opt.density")[:] = np.where(windy, parameters.air_density, 0.0)
-            self._wind = batch.expand("opt.wind")
-            heading = parameters.wind_direction
-            self._wind_direction = np.stack([np.cos(heading), np.sin(heading), np.zeros(runs)], axis=1)
-            self._wind_mean = parameters.wind_speed
+        self._wind = _Wind(batch, parameters) if parameters.windy.any() else None
 
         self._warning_counts = batch.warning[:, :, 1]  # (runs, warning kinds), live
         self.qpos[:] = q0
@@ -96,15 +81,30 @@ class Plant:
         self.failures: dict[int, str] = {}
         self.alive: np.ndarray | None = None  # indices of the runs still stepped; None: all
 
+    @property
+    def neighbour_q(self) -> np.ndarray:
+        """Live (runs, 3) view of the neighbour's joints; AttributeError without a neighbour."""
+        return self._neighbour_rail().q
+
+    @property
+    def neighbour_qd(self) -> np.ndarray:
+        """Live (runs, 3) view of the neighbour's joint speeds; AttributeError without a neighbour."""
+        return self._neighbour_rail().qd
+
+    def _neighbour_rail(self) -> _NeighbourDrive:
+        if self._rail is None:
+            raise AttributeError("this plant has no neighbour on its rail")
+        return self._rail
+
     def step(self, drive_force: np.ndarray, disturbance: np.ndarray, gust: np.ndarray) -> None:
         """Hold the (runs, 3) drive forces and disturbances, and each run's (runs,) gust on its
         mean wind, for one control period."""
-        _hold(drive_force, self._gear, self._actuators, disturbance, self._ctrl, self._applied)
-        if self.neighbour is not None:
-            force = self.neighbour.forces(self.neighbour_q, self.neighbour_qd, self._neighbour_bias)
-            _drive(force, self._neighbour_gear, self._neighbour_actuators, self._ctrl)
+        drives = self._drives
+        _hold(drive_force, drives.gear, drives.actuators, disturbance, drives.ctrl, drives.applied)
+        if self._rail is not None:
+            self._rail.drive()
         if self._wind is not None:
-            self._wind[:] = (self._wind_mean + gust)[:, None] * self._wind_direction
+            self._wind.blow(gust)
         for steps in self._calls:
             try:
                 self.batch.step(self.alive, nstep=steps)
@@ -118,7 +118,7 @@ class Plant:
         """Replace the (runs, 3) drive forces of the runs `stopped` (runs,) with their drives' quick
         stop: each brakes its own speed to zero within a control period as far as its force limit
         allows, and holds it there (bwr_twin.sim.drives)."""
-        quick_stop(stopped, self.qvel, self._bias, self._inertia, self._period, self._limits, drive_force)
+        self._quick_stop.apply(stopped, drive_force)
 
     def read(self, q: np.ndarray, qd: np.ndarray, drive_force: np.ndarray) -> None:
         """Copy the (runs, 3) joint state and the drive forces of the last period into the arrays given."""
@@ -139,6 +139,65 @@ class Plant:
         """Stop stepping `run`, for `reason` (the time is added); the others go on."""
         self.failures[run] = f"{reason}, near t = {self.batch.time[run]:.2f} s"
         self.alive = np.array([r for r in range(self.batch.nsim) if r not in self.failures], dtype=np.int64)
+
+
+class _Drives:
+    """The machine's drives as MuJoCo sees them: live views of the controls and of the applied
+    forces, and each drive's actuator column and gear (a force is held as force over gear)."""
+
+    def __init__(self, machine: Machine, ctrl: np.ndarray, applied: np.ndarray):
+        ids = list(machine.actuator_ids)
+        self.ctrl, self.applied = ctrl, applied
+        self.actuators = np.array(ids, dtype=np.int64)  # the drives' columns of ctrl, in joint order
+        self.gear = machine.model.actuator_gear[ids, 0].copy()
+
+
+class _QuickStop:
+    """A quick stop: each drive brakes its own speed on its inertia at the start pose, within its
+    force limits, in one control period (bwr_twin.sim.drives); only an interlock asks for it,
+    and it reads the batch's live speeds and bias forces."""
+
+    def __init__(self, qvel: np.ndarray, bias: np.ndarray, inertia: np.ndarray, limits: np.ndarray,
+                 period: float):
+        self._qvel, self._bias, self._inertia, self._limits, self._period = qvel, bias, inertia, limits, period
+
+    def apply(self, stopped: np.ndarray, drive_force: np.ndarray) -> None:
+        quick_stop(stopped, self._qvel, self._bias, self._inertia, self._period, self._limits, drive_force)
+
+
+class _NeighbourDrive:
+    """A second machine on the rail: live views of its joints (the model's fourth to sixth) and
+    the controls through which its `neighbour` (bwr_twin.sim.neighbour) works its drives."""
+
+    def __init__(self, neighbour: Neighbour, q: np.ndarray, qd: np.ndarray, bias: np.ndarray,
+                 model: mujoco.MjModel, ctrl: np.ndarray):
+        self.neighbour, self.q, self.qd, self._bias, self.ctrl = neighbour, q, qd, bias, ctrl
+        own = neighbour.machine
+        # Its actuators follow the machine's in the combined model.
+        self._actuators = np.array(own.actuator_ids, dtype=np.int64) + model.nu - own.model.nu
+        self._gear = own.model.actuator_gear[list(own.actuator_ids), 0].copy()
+        self.q[:] = neighbour.start
+
+    def drive(self) -> None:
+        """The neighbour's drive forces for this period, from where it stands and how it moves."""
+        force = self.neighbour.forces(self.q, self.qd, self._bias)
+        _drive(force, self._gear, self._actuators, self.ctrl)
+
+
+class _Wind:
+    """Each run's wind: a mean speed from its heading, plus the period's gust, written into the
+    per-simulation `opt.wind`; still runs get zero air density, so still air costs no drag."""
+
+    def __init__(self, batch: Batch, parameters: RunParameters):
+        batch.expand("opt.density")[:] = np.where(parameters.windy, parameters.air_density, 0.0)
+        self._wind = batch.expand("opt.wind")
+        heading = parameters.wind_direction
+        self._direction = np.stack([np.cos(heading), np.sin(heading), np.zeros(parameters.runs)], axis=1)
+        self._mean = parameters.wind_speed
+
+    def blow(self, gust: np.ndarray) -> None:
+        """Set each run's wind for the period: its mean plus its (runs,) gust, along its heading."""
+        self._wind[:] = (self._mean + gust)[:, None] * self._direction
 
 
 @numba.njit(cache=True)

@@ -240,7 +240,7 @@ class ReclaimStage(Stage):
         reclaim = self._reclaim
         load = reclaim.step(k, row.q, self._plant.alive)
         if load is not None:
-            row.disturbance += load
+            np.add(row.disturbance, load, out=row.disturbance)  # the row is a record of views: write in place
         self._account.observe(k)
         rows = row.reclaim
         rows["rate"][...], rows["cut_depth"][...] = reclaim.rate, reclaim.depth

@@ -144,7 +144,7 @@ class BenchTracking:
         `instruments`, if given, are what the rate control reads instead of the true rate and
         power. Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
         scene = scenes[0]
-        self._scene, self._machine, self._known_pile, self.instruments = scene, machine, known_pile, instruments
+        self._scene, self._machine, self._known_pile = scene, machine, known_pile
         self._reclaim = reclaim
         survey = survey_plan(scene)
         # The control period at which the survey ends and the benches begin; None without a survey.
@@ -158,21 +158,13 @@ class BenchTracking:
         self.samples, self.time, self.start = reference.samples, reference.time, reference.start
         self._period = period
         self._stop = scene.reclaim.stop
-        control = scene.reclaim.rate_control
-        self._trim_limits = control.trim_limits
-        digging = [s.digging for s in scenes]
-        wheel = WheelCalibration(
-            idle_power=np.array([d.idle_power if d else np.nan for d in digging]),
-            cutting_energy=np.array([(control.cutting_energy or d.cutting_energy) if d else np.nan for d in digging]),
-            bulk_density=np.array([s.stockpile.bulk_density for s in scenes]),
-            belt_delay=instruments.delay_periods * period if instruments and instruments.scale else 0.0,
-        )
-        targets = np.array([s.reclaim.target_rate for s in scenes])
-        cls = rate_control_class(control.type)
-        self._label = f"{scene.path}: rate control {describe(control.type, cls)}"  # an engineer's failures are theirs
-        self._rate_control = construct(self._label, cls, control, targets, period, wheel)
-        self._targets = targets
-        self.outcome = PlanOutcome(self.plan, targets, machine.wheel.bucket_interval, period)
+        self._trim = SlewTrim(scenes, period, instruments)
+        self.outcome = PlanOutcome(self.plan, self._trim.targets, machine.wheel.bucket_interval, period)
+
+    @property
+    def instruments(self) -> RateInstruments | None:
+        """What the rate control reads instead of the true rate and power, if given."""
+        return self._trim.instruments
 
     def now(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         r = self._reference
@@ -190,25 +182,7 @@ class BenchTracking:
         reference, reclaim = self._reference, self._reclaim
         if not self.surveying:
             self.outcome.add(k - 1, phase, reclaim)
-        time = (k - 1) * self._period
-        instruments = self.instruments
-        if instruments is None:
-            signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
-        else:
-            signals = RateSignals(instruments.belt_scale.copy(), instruments.wheel_power.copy(), phase.cutting,
-                                  phase.steady, instruments.wheel_current.copy())
-        if self.external_trim is not None:
-            trim = np.full(len(signals.belt_rate), np.clip(self.external_trim, *self._trim_limits))
-        else:
-            trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
-                           (len(signals.belt_rate),), time)
-        low, high = self._trim_limits  # an external trim is clipped to them; NaN lies within none
-        if not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
-            if not np.isfinite(trim).all():
-                raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
-            raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must lie within "
-                              f"'reclaim.rate_control.trim_limits' [{low:g}, {high:g}] (a multiple of the slew "
-                              "speed law's, never negative)")
+        trim = self._trim.trims((k - 1) * self._period, reclaim, phase, self.external_trim)
         stop, stopping = self._stop, None
         if stop.time is not None and k * self._period >= stop.time - 1e-9:
             stopping = np.ones(len(trim), dtype=bool)
@@ -228,7 +202,7 @@ class BenchTracking:
         self.plan = plan_after_survey(self._scene, self._machine, self._known_pile())
         self._reference.continue_with(self.plan)
         self.samples, self.time = self._reference.samples, self._reference.time
-        self.outcome = PlanOutcome(self.plan, self._targets, self._machine.wheel.bucket_interval, self._period)
+        self.outcome = PlanOutcome(self.plan, self._trim.targets, self._machine.wheel.bucket_interval, self._period)
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)
@@ -247,3 +221,55 @@ class BenchTracking:
         return {"waypoint_times": waypoints.times.tolist(), "waypoints": waypoints.points.tolist(),
                 "waypoint_names": [stage.name for stage in stages],
                 "waypoint_stages": [stage.to_dict() for stage in stages]}
+
+
+class SlewTrim:
+    """Each period's slew speed trims: the scene's rate control's, from what each run's reclaim
+    (or its instruments) measured, or one set from outside the twin; checked within the scene's
+    `trim_limits`, so that an engineer's rate control fails with its own name.
+
+    Attributes:
+        targets: (runs,) t/h each run's target rate.
+        instruments: what the rate control reads instead of the true rate and power, or None.
+    """
+
+    def __init__(self, scenes: Sequence[Scene], period: float, instruments: RateInstruments | None):
+        scene = scenes[0]
+        self.instruments = instruments
+        control = scene.reclaim.rate_control
+        self._limits = control.trim_limits
+        digging = [s.digging for s in scenes]
+        wheel = WheelCalibration(
+            idle_power=np.array([d.idle_power if d else np.nan for d in digging]),
+            cutting_energy=np.array([(control.cutting_energy or d.cutting_energy) if d else np.nan for d in digging]),
+            bulk_density=np.array([s.stockpile.bulk_density for s in scenes]),
+            belt_delay=instruments.delay_periods * period if instruments and instruments.scale else 0.0,
+        )
+        self.targets = np.array([s.reclaim.target_rate for s in scenes])
+        cls = rate_control_class(control.type)
+        self._label = f"{scene.path}: rate control {describe(control.type, cls)}"  # an engineer's failures are theirs
+        self._rate_control = construct(self._label, cls, control, self.targets, period, wheel)
+
+    def trims(self, time: float, reclaim: Reclaim, phase: Phase, external: float | None) -> np.ndarray:
+        """(runs,) the trims after the period that began at `time` (s), in which the runs stood at
+        `phase`; `external`, if not None, is every run's, clipped to the limits. PluginError for a
+        trim that is not finite or not within the limits."""
+        instruments = self.instruments
+        if instruments is None:
+            signals = RateSignals(reclaim.rate.copy(), reclaim.power.copy(), phase.cutting, phase.steady)
+        else:
+            signals = RateSignals(instruments.belt_scale.copy(), instruments.wheel_power.copy(), phase.cutting,
+                                  phase.steady, instruments.wheel_current.copy())
+        if external is not None:
+            trim = np.full(len(signals.belt_rate), np.clip(external, *self._limits))
+        else:
+            trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
+                           (len(signals.belt_rate),), time)
+        low, high = self._limits  # an external trim is clipped to them; NaN lies within none
+        if not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
+            if not np.isfinite(trim).all():
+                raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
+            raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must lie within "
+                              f"'reclaim.rate_control.trim_limits' [{low:g}, {high:g}] (a multiple of the slew "
+                              "speed law's, never negative)")
+        return trim

@@ -27,7 +27,7 @@ from bwr_twin.stockpile.conveyor import Conveyor
 from bwr_twin.stockpile.digging import DiggingLoad
 from bwr_twin.stockpile.layers import LayeredPile
 from bwr_twin.stockpile.placement import check_placement
-from bwr_twin.stockpile.stacked import read_stacked
+from bwr_twin.stockpile.stacked import StackedPile, read_stacked
 
 
 class Reclaim:
@@ -55,10 +55,10 @@ class Reclaim:
                                        np.array([d.idle_power if d else 0.0 for d in digging]),
                                        np.array([d.lateral_ratio if d else 0.0 for d in digging]),
                                        self.conveyor.bucket_interval, period)
-        self.stacked = None
-        self.layers: list[LayeredPile] | None = None
+        self._strata = None
         if stacked:
-            self._stack(scenes)
+            self._strata = Strata(scenes, self.surface)
+            self.conveyor.track_grade()
         zeros = np.zeros(runs)
         self.rate = self.conveyor.rate
         self.power = self.digging.power if self.digging is not None else zeros
@@ -66,6 +66,16 @@ class Reclaim:
         self.depth = np.zeros(runs)
         self.cut: Cut | None = None
         self.cp = np.zeros((runs, 3))
+
+    @property
+    def stacked(self) -> StackedPile | None:
+        """The stacked pile the runs reclaim, with its layers and grades, or None."""
+        return None if self._strata is None else self._strata.stacked
+
+    @property
+    def layers(self) -> list[LayeredPile] | None:
+        """On a stacked pile, each run's layers as they stand under its heights; else None."""
+        return None if self._strata is None else self._strata.piles
 
     @property
     def heights(self) -> np.ndarray:
@@ -83,43 +93,17 @@ class Reclaim:
         or None when there is none."""
         self.cp = cp = self.machine.fk(q)
         self.cut = cut = self.cutter.cut(cp, q[:, 1], runs)
-        self.conveyor.load(k, cut.volume, self._cut_layers(cut) if self.layers is not None else None)
+        strata = self._strata
+        self.conveyor.load(k, cut.volume, strata.cut(cut, self.cutter.heights) if strata is not None else None)
         slumps = self.cutter.slump(cut)
-        if self.layers is not None:
-            for run, slump in enumerate(slumps):
-                if slump is not None:
-                    self.layers[run].follow(slump, self.cutter.heights[run])
+        if strata is not None:
+            strata.follow(slumps, self.cutter.heights)
         self.depth[:] = cut.depth
         return self.digging.step(q, cp, cut) if self.digging is not None else None
 
-    def _stack(self, scenes: Sequence[Scene]) -> None:
-        """Lay the stacked pile's layers under every run's heights; SceneError if it was stacked at
-        another bulk density than the scene's."""
-        scene = scenes[0]
-        self.stacked = stacked = read_stacked(scene.stockpile.surface_file, self.surface, scene.path)
-        if not math.isclose(stacked.bulk_density, scene.stockpile.bulk_density, rel_tol=1e-9):
-            raise SceneError(f"{scene.path}: 'stockpile.bulk_density' ({scene.stockpile.bulk_density:g} kg/m3) must "
-                             f"be the {stacked.bulk_density:g} kg/m3 its stacked pile was laid at "
-                             f"({scene.stockpile.surface_file})")
-        self.layers = [copy.deepcopy(stacked.pile) for _ in scenes]
-        self.conveyor.track_grade()
-
     def top_grades(self) -> list[np.ndarray] | None:
         """On a stacked pile, each run's (ny, nx) top layer's grade, for the replay; else None."""
-        return None if self.layers is None else [layers.top_grade() for layers in self.layers]
-
-    def _cut_layers(self, cut: Cut) -> np.ndarray:
-        """(runs,) grade x m^3 of what each run's wheel cut this period: its layers lowered to the
-        cut heights, in the cells the cut lowered."""
-        grade_volume = np.zeros(len(self.layers))
-        for run in np.flatnonzero(cut.volume > 0):
-            layers, heights = self.layers[run], self.cutter.heights[run]
-            row0, row1, column0, column1 = cut.cells[run]
-            window = (slice(row0, row1 + 1), slice(column0, column1 + 1))
-            rows, columns = np.nonzero(layers.z[window] > heights[window])
-            cells = (rows + row0) * heights.shape[1] + columns + column0
-            _, grade_volume[run] = layers.cut_cells(cells, heights.reshape(-1)[cells])
-        return grade_volume
+        return None if self._strata is None else [layers.top_grade() for layers in self._strata.piles]
 
     @property
     def belt_delay(self) -> float:
@@ -135,3 +119,42 @@ class Reclaim:
     def finish(self, k: int) -> None:
         """After the last period k: the bucket in the cut discharges (bwr_twin.stockpile.conveyor)."""
         self.conveyor.finish(k)
+
+
+class Strata:
+    """On a stacked pile, each run's layers under its heights: the cells the wheel lowers give up
+    their layers from the top, and the faces that slump after the cut carry theirs along.
+
+    Attributes:
+        stacked: the stacked pile as read (bwr_twin.stockpile.stacked).
+        piles: each run's LayeredPile.
+    """
+
+    def __init__(self, scenes: Sequence[Scene], surface: Surface):
+        """SceneError if the pile was stacked at another bulk density than the scene's."""
+        scene = scenes[0]
+        self.stacked = stacked = read_stacked(scene.stockpile.surface_file, surface, scene.path)
+        if not math.isclose(stacked.bulk_density, scene.stockpile.bulk_density, rel_tol=1e-9):
+            raise SceneError(f"{scene.path}: 'stockpile.bulk_density' ({scene.stockpile.bulk_density:g} kg/m3) must "
+                             f"be the {stacked.bulk_density:g} kg/m3 its stacked pile was laid at "
+                             f"({scene.stockpile.surface_file})")
+        self.piles = [copy.deepcopy(stacked.pile) for _ in scenes]
+
+    def cut(self, cut: Cut, heights: np.ndarray) -> np.ndarray:
+        """(runs,) grade x m^3 of what each run's wheel cut this period: its layers lowered to the
+        cut heights (runs, ny, nx), in the cells the cut lowered."""
+        grade_volume = np.zeros(len(self.piles))
+        for run in np.flatnonzero(cut.volume > 0):
+            layers, run_heights = self.piles[run], heights[run]
+            row0, row1, column0, column1 = cut.cells[run]
+            window = (slice(row0, row1 + 1), slice(column0, column1 + 1))
+            rows, columns = np.nonzero(layers.z[window] > run_heights[window])
+            cells = (rows + row0) * run_heights.shape[1] + columns + column0
+            _, grade_volume[run] = layers.cut_cells(cells, run_heights.reshape(-1)[cells])
+        return grade_volume
+
+    def follow(self, slumps: Sequence, heights: np.ndarray) -> None:
+        """Each run's layers follow the faces that slumped (None: none) to its heights (runs, ny, nx)."""
+        for run, slump in enumerate(slumps):
+            if slump is not None:
+                self.piles[run].follow(slump, heights[run])
