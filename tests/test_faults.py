@@ -70,6 +70,25 @@ kind = "encoder_dropout"
 axis = "travel"
 start = 400.0
 duration = 0.5
+
+[[faults]]
+kind = "friction_rise"
+axis = "slew"
+percent = 20.0
+ramp = 60.0
+start = 100.0
+
+[[faults]]
+kind = "mass_change"
+mass = 5000.0
+start = 100.0
+
+[[faults]]
+kind = "drive_derate"
+axis = "travel"
+percent = 15.0
+start = 100.0
+duration = 50.0
 """
 
 
@@ -101,7 +120,8 @@ def test_the_example_keeps_every_rule():
 def test_an_unknown_kind_lists_the_kinds_counting_tables_from_zero():
     faults = (FaultSection("encoder_stuck", 0.0, axis="slew"), FaultSection("gremlins", 0.0))
     _refused(faults, r"'faults\[1\]\.kind' must be one of encoder_stuck, encoder_dropout, encoder_drift, "
-                     r"encoder_noise, scanner_blinded, belt_scale_frozen, drive_trip, late_inputs, got 'gremlins'")
+                     r"encoder_noise, scanner_blinded, belt_scale_frozen, drive_trip, late_inputs, "
+                     r"friction_rise, mass_change, drive_derate, got 'gremlins'")
 
 
 def test_start_and_duration():
