@@ -4,8 +4,9 @@ A fault is a sensor or a drive that fails for a while: an encoder that sticks, d
 or turns noisy, a scanner blinded by dust, a belt scale that freezes, a drive that trips, or the
 controller's encoder readings arriving late; or the plant itself changing: an axis's friction
 rising (a seizing bearing), material caking at the wheel end (mass), a drive derated. A plant
-fault grows linearly over its `ramp` s from its start to its full size (a step without one). Each acts from `start` (s after the run's start)
-for `duration` s, or to the run's end without one. Engineers write angles in degrees: an
+fault grows linearly over its `ramp` s from its start to its full size (a step without one).
+Each acts from `start` (s after the run's start) for `duration` s, or to the run's end without
+one. Engineers write angles in degrees: an
 encoder fault's `rate` is m/s on travel and deg/s on slew and luff, its `sigma` m or deg; the
 twin converts them to radians itself (bwr_twin.sensing.faults). A table is refused if it
 misses a key its kind needs or gives one its kind does not use: a key that is silently ignored
@@ -40,7 +41,7 @@ _KEYS = {
     "drive_derate": ("axis", "percent", "ramp"),
 }
 FAULT_KINDS = tuple(_KEYS)
-_OPTIONAL = ("axis", "scanner", "rate", "sigma", "periods", "percent", "mass", "ramp")  # the keys only some kinds use
+_OPTIONAL = ("axis", "scanner", "rate", "sigma", "periods", "percent", "mass", "ramp")  # keys only some kinds use
 PLANT_KINDS = ("friction_rise", "mass_change", "drive_derate")  # faults of the machine, not of its sensors
 _SCANNER_PREFIX = "scanner"  # a scanner is a site whose name starts with it (the model contract)
 

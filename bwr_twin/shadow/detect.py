@@ -130,7 +130,8 @@ def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray
     """(residual, signature) of a hypothesis, each (blocks,) in units of the noise."""
     if h.kind == "encoder_drift":
         j = h.axis
-        return (blocks.drift[:, j] - t.drift_mean[j]) / t.drift_sigma[j], np.full(len(blocks.start), 1.0 / t.drift_sigma[j])
+        sigma = t.drift_sigma[j]
+        return (blocks.drift[:, j] - t.drift_mean[j]) / sigma, np.full(len(blocks.start), 1.0 / sigma)
     sigma, mean = np.asarray(t.force_sigma), np.asarray(t.force_mean)
     r = (blocks.force - mean) / sigma
     s = {"friction_rise": blocks.friction, "drive_derate": blocks.derate, "mass_change": blocks.mass}[h.kind] / sigma
@@ -230,7 +231,8 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, si
     if h.kind == "mass_change":
         value, unit, axis = size * UNIT_MASS, "kg", "wheel end"
     elif h.kind == "encoder_drift":
-        value, unit, axis = size * (1.0 if h.axis == 0 else math.degrees(1.0)), ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
+        value = size * (1.0 if h.axis == 0 else math.degrees(1.0))
+        unit, axis = ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
     else:
         value, unit, axis = 100.0 * size, "%", AXES[h.axis]
     return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), value, unit, g,

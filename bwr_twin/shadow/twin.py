@@ -85,7 +85,8 @@ class ShadowTwin:
         self._data = mujoco.MjData(self._model)
         self._actuators = np.array(machine.actuator_ids, dtype=np.int64)
         self._gear = machine.model.actuator_gear[self._actuators, 0].copy()
-        body = mujoco.mj_id2name(machine.model, mujoco.mjtObj.mjOBJ_BODY, int(machine.model.site_bodyid[machine.cp_site]))
+        cp_body = int(machine.model.site_bodyid[machine.cp_site])
+        body = mujoco.mj_id2name(machine.model, mujoco.mjtObj.mjOBJ_BODY, cp_body)
         at = tuple(float(x) for x in machine.model.site_pos[machine.cp_site])
         heavier = Machine(mjcf, payloads=(_UnitPayload(body, UNIT_MASS, at),))
         self._inverse = [self._free(machine.physics_model()), self._free(heavier.physics_model())]
