@@ -14,7 +14,8 @@ friction rise's on fault-free residuals), and a change that began before the las
 fault that alarm named.
 
 A stuck encoder is decided without a test: the encoder read the same position for a whole
-block while the axis moved by more than STUCK_COUNTS counts of the encoder.
+block while the axis moved by more than STUCK_COUNTS counts of the encoder (off for an encoder
+the fault-free log never saw step: its count is unknown).
 
 Thresholds: a threshold for `per_hour` false alarms per hour makes one test of the WINDOW onsets
 each block as unlikely to exceed it as the hours ask (Bonferroni over the tests of an hour, on
@@ -55,7 +56,8 @@ CLASSES = {
 @dataclass(frozen=True)
 class Thresholds:
     """What a fault-free log taught: per axis the noise of the force residual (N, N m) and of
-    the drift residual (m/s, rad/s), their means, the encoder counts (m, rad), and the GLR
+    the drift residual (m/s, rad/s), their means, the encoder counts (m, rad; None for an
+    encoder the log never saw step: its stuck test is off), and the GLR
     threshold of each hypothesis, for `per_hour` false alarms an hour."""
 
     per_hour: float
@@ -63,7 +65,7 @@ class Thresholds:
     force_sigma: list[float]
     drift_mean: list[float]
     drift_sigma: list[float]
-    counts: list[float]
+    counts: list[float | None]
     thresholds: dict[str, float]
     bias: dict[str, float]
     block_s: float = BLOCK
@@ -173,9 +175,9 @@ def learn(blocks: Blocks, counts: np.ndarray, per_hour: float) -> Thresholds:
                        "at least")
     if not (per_hour > 0):
         raise BwrError(f"--false-alarms-per-hour must be > 0, got {per_hour}")
-    counts = np.asarray(counts, dtype=float).tolist()
+    counts = [float(c) if np.isfinite(c) else None for c in counts]  # None: never seen to step
     base = Thresholds(per_hour, blocks.force.mean(0).tolist(), _sigma(blocks.force), blocks.drift.mean(0).tolist(),
-                      _sigma(blocks.drift, floor=np.asarray(counts) / BLOCK / math.sqrt(6)), counts, {}, {})
+                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, {}, {})
     bias = {}
     for h in HYPOTHESES:  # the size each fault seems to have on the fault-free machine: its controller's share
         r, s = _whitened(blocks, base, h)
@@ -189,6 +191,11 @@ def learn(blocks: Blocks, counts: np.ndarray, per_hour: float) -> Thresholds:
         g, _, _ = glr(r, s, 3 if h.axis < 0 else 1, h.sided)
         thresholds[_name(h)] = max(law, MARGIN * float(g.max(initial=0.0)))
     return Thresholds(**{**asdict(base), "thresholds": thresholds})
+
+
+def _known(counts: list[float | None]) -> np.ndarray:
+    """The counts as an array, 0 where unknown."""
+    return np.array([c or 0.0 for c in counts])
 
 
 def _sigma(values: np.ndarray, floor: np.ndarray | None = None) -> list[float]:
@@ -242,6 +249,8 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, si
 def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     alarms = []
     for j in range(3):
+        if t.counts[j] is None:  # an encoder never seen to step: how far is "moved" unknown
+            continue
         stuck = blocks.still[:, j] & (np.abs(blocks.moved[:, j]) > STUCK_COUNTS * t.counts[j])
         if stuck.any():
             k = int(np.argmax(stuck))

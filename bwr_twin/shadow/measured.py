@@ -50,10 +50,10 @@ class Measured:
 
 
 def encoder_counts(measured: Measured) -> np.ndarray:
-    """(3,) m, rad: each encoder's count, the smallest step its reading was seen to make."""
+    """(3,) m, rad: each encoder's count, the smallest step its reading was seen to make; inf for
+    one that never stepped (its count unknown)."""
     steps = np.abs(np.diff(measured.q, axis=0))
-    counts = [steps[steps[:, j] > 1e-12, j].min(initial=np.inf) for j in range(3)]
-    return np.where(np.isfinite(counts), counts, 1e-9)
+    return np.array([steps[steps[:, j] > 1e-12, j].min(initial=np.inf) for j in range(3)])
 
 
 def read_measured(path: Path, limits: np.ndarray) -> Measured:
