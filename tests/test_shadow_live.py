@@ -7,19 +7,22 @@ a tag map for another machine, or a tag that is missing, is one line."""
 from __future__ import annotations
 
 import asyncio
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from asyncua import ua
 from conftest import ROOT
-from test_serve import CALL_TIMEOUT, Launched, client
+from test_serve import CALL_TIMEOUT, Launched, client, environment, free_port
 
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import learn
-from bwr_twin.shadow.live import LiveShadow, Source, poll
+from bwr_twin.shadow.live import LiveShadow, Source, poll_once
 from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.tags import read_tags
-from bwr_twin.shadow.twin import ShadowTwin
+from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
 SCENE = ROOT / "scenes" / "heavy_shadow.toml"
 MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
@@ -62,7 +65,7 @@ async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | N
                 if now - drop_at < STEP * 0.01 / 2:
                     await source._client.disconnect()  # the network drops the shadow's session
                 continue
-            await poll(source, shadow, events.append)
+            await poll_once(source, shadow, events.append)
     await source.close()
 
 
@@ -113,3 +116,32 @@ def test_a_map_for_another_machine_or_a_missing_tag_is_one_line(tmp_path):
             await Source(url, read_tags(wrong, "bwr_heavy")).connect()
 
     served(SCENE, connect)
+
+
+def test_the_command_line_says_an_unreachable_source_is_lost_and_keeps_trying(tmp_path):
+    thresholds = tmp_path / "thresholds.json"
+    learn(_still_blocks(), np.array([0.00153, 0.00153, 0.00076]), 0.01).write(thresholds)
+    command = [sys.executable, "-m", "bwr_twin.shadow", "--source", f"opc.tcp://127.0.0.1:{free_port()}",
+               "--tags", str(TAGS), "--model", str(MJCF), "--thresholds", str(thresholds)]
+    done = subprocess.run([*command, "--duration", "3"], check=False, capture_output=True, text=True, cwd=ROOT,
+                          env=environment(), timeout=600)
+    assert done.returncode == 0, done.stderr
+    events = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [e["event"] for e in events] == ["source_lost"]
+    paper = [*command[:-4], "--model", str(ROOT / "mjcf" / "bwr.xml"), "--thresholds", str(thresholds)]
+    other = subprocess.run(paper, check=False, capture_output=True, text=True, cwd=ROOT, env=environment(), timeout=600)
+    assert other.returncode == 2 and len(other.stderr.strip().splitlines()) == 1
+    assert "a map for another machine is refused" in other.stderr
+
+
+def _still_blocks():
+    """Blocks of a machine at rest under noise: enough to learn thresholds from."""
+    rng = np.random.default_rng(1)
+    n = 40
+
+    def noise(scale):
+        return rng.normal(0.0, scale, (n, 3))
+
+    zeros = np.zeros((n, 3))
+    return Blocks(np.arange(n, dtype=float), np.arange(1, n + 1, dtype=float), noise(1e3), zeros, zeros,
+                  noise(1e-4), np.zeros((n, 3), bool), zeros, noise(1e3), noise(1e3), noise(1e3))

@@ -160,22 +160,47 @@ class LiveShadow:
         return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
 
 
-async def poll(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> bool:
+async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> bool:
     """Read one sample into the shadow; on a dropped source say so, reconnect (every RETRY s until
     it answers) and say when it is back. True if a sample was read."""
     try:
         shadow.add(await source.read())
         return True
     except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError, AttributeError):
-        say({"event": "source_lost", "time_s": shadow.time,
-             "source": source.url})
+        say({"event": "source_lost", "time_s": shadow.time, "source": source.url})
         await source.close()
-        while True:
-            try:
-                await source.connect()
-                break
-            except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError):
-                await asyncio.sleep(RETRY)
-        say({"event": "source_back", "time_s": shadow.time,
-             "source": source.url})
+        await _reconnect(source, shadow, say)
         return False
+
+
+async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> None:
+    """Try the source every RETRY s until it answers; say when it is back."""
+    while True:
+        try:
+            await source.connect()
+            break
+        except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError):
+            await asyncio.sleep(RETRY)
+    say({"event": "source_back", "time_s": shadow.time, "source": source.url})
+
+
+async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, poll: float,
+                   duration: float | None) -> None:
+    """Watch `source` every `poll` s for `duration` s (None: until cancelled); a source that cannot
+    be reached at the start is said so and tried again every RETRY s, as one that drops later."""
+    async def watch() -> None:
+        try:
+            await source.connect()
+        except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError):
+            say({"event": "source_lost", "time_s": 0.0, "source": source.url})
+            await _reconnect(source, shadow, say)
+        while True:
+            await poll_once(source, shadow, say)
+            await asyncio.sleep(poll)
+
+    try:
+        await asyncio.wait_for(watch(), duration)
+    except asyncio.TimeoutError:
+        pass
+    finally:
+        await source.close()

@@ -80,6 +80,7 @@ class ShadowTwin:
     def __init__(self, mjcf: Path):
         machine = Machine(mjcf)
         self.machine = machine
+        self.model_name = machine.model.names[: machine.model.names.index(b"\0")].decode()  # <mujoco model=...>
         self.limits = machine.drive_limits  # (3, 2) N, N m
         self._model = machine.physics_model()
         self._data = mujoco.MjData(self._model)
