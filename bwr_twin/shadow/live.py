@@ -95,10 +95,11 @@ class LiveShadow:
     """The shadow over a source's samples as they arrive: blocks, gaps and alarms so far.
 
     `say(event)` hears every event (a dict, as events.jsonl holds them) as it happens: the source
-    lost and back, a gap, an alarm."""
+    lost and back, a gap, an alarm. Without `thresholds` (None) it only makes blocks, to learn
+    thresholds from (`blocks()`, `measured()`); set them and it detects from the next block on."""
 
     def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None]):
-        self._twin, self._thresholds, self._say = twin, thresholds, say
+        self._twin, self.thresholds, self._say = twin, thresholds, say
         self._samples: list[np.ndarray] = []
         self._done = 0  # the first sample of the block not yet handed to the twin
         self._blocks: list[Blocks] = []
@@ -144,13 +145,13 @@ class LiveShadow:
             return
         self._blocks.append(blocks)
         self._done += int(np.searchsorted(tail.time, blocks.end[-1]))
-        if self._thresholds is not None:
+        if self.thresholds is not None:
             self._detect()
 
     def _detect(self) -> None:
         blocks = self.blocks()
         known = {(a.kind, a.axis) for a in self.alarms}
-        for alarm in detect(blocks, self._thresholds):
+        for alarm in detect(blocks, self.thresholds):
             if (alarm.kind, alarm.axis) not in known:
                 self.alarms.append(alarm)
                 self._say(alarm.event())
