@@ -55,6 +55,9 @@ def _run(args: argparse.Namespace) -> int:
         return _live(args)
     if args.out is None:
         raise BwrError("--out is needed to watch a --log: the folder its events and residuals go to")
+    live_only = [name for name, value in (("--tags", args.tags), ("--duration", args.duration)) if value is not None]
+    if live_only:
+        raise BwrError(f"{live_only[0]} is for a live --source, not a --log")
     from bwr_twin.ownership import check_output
     from bwr_twin.results.rundir import staged_directory
     from bwr_twin.shadow.detect import Thresholds
@@ -96,6 +99,8 @@ def _live(args: argparse.Namespace) -> int:
     from bwr_twin.shadow.twin import ShadowTwin
     from bwr_twin.shadow.watch import learn_from
 
+    if args.out is not None:
+        raise BwrError("--out is for a --log; live, the events are printed as JSON lines")
     if args.tags is None:
         raise BwrError("--source needs --tags: the tag map naming the machine's variables (docs/shadow.md)")
     if not args.source.startswith("opc.tcp://"):
