@@ -82,10 +82,20 @@ def twin() -> ShadowTwin:
     return ShadowTwin(MJCF)
 
 
+async def missing_tag_then_session(url: str, wrong_tags, shadow: LiveShadow, events: list) -> None:
+    """A tag map naming a node the server lacks is refused in one line; then a session."""
+    with pytest.raises(BwrError, match=r"tag luff.speed = 'Reclaimer.Luff.Tachometer': .*cannot be read"):
+        await Source(url, read_tags(wrong_tags, "bwr_heavy")).connect()
+    await session(url, shadow, events)
+
+
 def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tmp_path):
+    """Also: a tag that is missing is one line, as the shadow connects."""
+    wrong = tmp_path / "tags.toml"
+    wrong.write_text(TAGS.read_text().replace("Reclaimer.Luff.EncoderVelocity", "Reclaimer.Luff.Tachometer"))
     free: list = []
     baseline = LiveShadow(twin, None, free.append)
-    served(SCENE, lambda url: session(url, baseline, free))
+    served(SCENE, lambda url: missing_tag_then_session(url, wrong, baseline, free))
     assert free == []
     measured = baseline.measured()
     thresholds = learn(baseline.blocks(), encoder_counts(measured), 0.01)
@@ -105,17 +115,9 @@ def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tm
     assert alarms[0]["time_s"] >= ONSET
 
 
-def test_a_map_for_another_machine_or_a_missing_tag_is_one_line(tmp_path):
+def test_a_map_for_another_machine_is_one_line():
     with pytest.raises(BwrError, match="the tag map is for machine 'bwr_heavy', the model is 'bwr'"):
         read_tags(TAGS, "bwr")
-    wrong = tmp_path / "tags.toml"
-    wrong.write_text(TAGS.read_text().replace("Reclaimer.Luff.EncoderVelocity", "Reclaimer.Luff.Tachometer"))
-
-    async def connect(url):
-        with pytest.raises(BwrError, match=r"tag luff.speed = 'Reclaimer.Luff.Tachometer': .*cannot be read"):
-            await Source(url, read_tags(wrong, "bwr_heavy")).connect()
-
-    served(SCENE, connect)
 
 
 def test_the_command_line_says_an_unreachable_source_is_lost_and_keeps_trying(tmp_path):

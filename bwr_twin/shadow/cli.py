@@ -68,11 +68,12 @@ def _run(args: argparse.Namespace) -> int:
     check_output(args.out, "shadow", overwrite=args.overwrite, inputs=inputs)
     if not args.model.is_file():
         raise BwrError(f"{args.model}: MJCF file not found")
+    for path in (args.log, args.baseline):
+        if path is not None and not (path / "timeseries.csv" if path.is_dir() else path).is_file():
+            raise BwrError(f"{path}: no log there: give a run directory or its timeseries.csv")
+    known = Thresholds.read(args.thresholds) if args.thresholds is not None else None  # refused before the twin is built
     twin = ShadowTwin(args.model)
-    if args.thresholds is not None:
-        thresholds = Thresholds.read(args.thresholds)
-    else:
-        thresholds = learn_from(twin, args.baseline, args.false_alarms_per_hour)
+    thresholds = known if known is not None else learn_from(twin, args.baseline, args.false_alarms_per_hour)
     started = time.perf_counter()
     watched = watch(twin, args.log, thresholds)
     took = time.perf_counter() - started
