@@ -6,12 +6,12 @@ generalised likelihood ratio of "the residual is the signature times a size sinc
 against "the residual is noise" is (sum r s)^2 / sum s^2, the residuals and signatures divided
 by the residual's noise, learned per axis from a fault-free log. Its largest value over the
 onsets is the hypothesis's statistic, the onset and size that give it the alarm's onset and
-size. A fault is detected when any statistic exceeds its threshold; ISOLATE blocks later it is
-isolated to the hypothesis whose statistic then exceeds its threshold most (the fault that best
-explains what the residuals did, on the scale its own fault-free statistics set: a drive's force
-follows the disturbances its controller fights, so a derate's statistic is larger than a
-friction rise's on fault-free residuals), and a change that began before the last alarm is the
-fault that alarm named.
+size. The size a fault seems to have on the fault-free log is taken off first: a drive's force
+follows the disturbances its controller fights, so a fault-free machine looks a few per cent
+derated. A fault is detected when any statistic exceeds its threshold; ISOLATE blocks later it
+is isolated to the hypothesis whose statistic is then the largest (the most likely: the fault
+that best explains what the residuals did). Each class and axis is raised once, and a change
+that began before the last alarm is the fault that alarm named.
 
 A stuck encoder is decided without a test: the encoder read the same position for a whole
 block while the axis moved by more than STUCK_COUNTS counts of the encoder (off for an encoder
