@@ -4,7 +4,7 @@ VENV ?= .venv
 PYTHON ?= python3
 PY := $(VENV)/bin/python
 
-.PHONY: setup run dig reclaim test test-quick bench bench-replay bench-batch bench-gym bench-opcua bench-fmu clean
+.PHONY: setup run dig reclaim test test-quick bench bench-replay bench-batch bench-gym bench-opcua bench-fmu shadow clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,9 @@ bench-gym: setup
 
 bench-opcua: setup
 	$(PY) tools/bench_opcua.py
+
+shadow: setup
+	$(PY) examples/shadow_demo.py
 
 bench-fmu: setup
 	$(PY) tools/bench_fmu.py

@@ -70,6 +70,25 @@ kind = "encoder_dropout"
 axis = "travel"
 start = 400.0
 duration = 0.5
+
+[[faults]]
+kind = "friction_rise"
+axis = "slew"
+percent = 20.0
+ramp = 60.0
+start = 100.0
+
+[[faults]]
+kind = "mass_change"
+mass = 5000.0
+start = 100.0
+
+[[faults]]
+kind = "drive_derate"
+axis = "travel"
+percent = 15.0
+start = 100.0
+duration = 50.0
 """
 
 
@@ -101,7 +120,8 @@ def test_the_example_keeps_every_rule():
 def test_an_unknown_kind_lists_the_kinds_counting_tables_from_zero():
     faults = (FaultSection("encoder_stuck", 0.0, axis="slew"), FaultSection("gremlins", 0.0))
     _refused(faults, r"'faults\[1\]\.kind' must be one of encoder_stuck, encoder_dropout, encoder_drift, "
-                     r"encoder_noise, scanner_blinded, belt_scale_frozen, drive_trip, late_inputs, got 'gremlins'")
+                     r"encoder_noise, scanner_blinded, belt_scale_frozen, drive_trip, late_inputs, "
+                     r"friction_rise, mass_change, drive_derate, got 'gremlins'")
 
 
 def test_start_and_duration():
@@ -190,6 +210,27 @@ def test_windows_at_their_boundaries():
 def test_no_fault_is_inactive():
     assert Faults((), [1, 2], PERIOD).active is False
     assert Faults(_example(), [1, 2], PERIOD).active is True
+
+
+def test_a_derate_grows_over_its_ramp_and_scales_only_its_axis():
+    """15 % over a ramp of 0.04 s (4 periods): 3.75 % more each period from its first, then held."""
+    faults = Faults((FaultSection("drive_derate", 1.0, 1.0, axis="travel", percent=15.0, ramp=0.04),), [1, 2], PERIOD)
+    shares = []
+    for k in range(99, 106):
+        command = np.full((2, 3), 1000.0)
+        faults.command(k, command)
+        np.testing.assert_array_equal(command[:, 1:], 1000.0)
+        shares.append(round(1 - command[0, 0] / 1000.0, 6))
+    assert shares == [0.0, 0.0375, 0.075, 0.1125, 0.15, 0.15, 0.15]
+
+
+def test_plant_fault_sizes_are_checked():
+    _refused([FaultSection("drive_derate", 0.0, axis="slew", percent=100.0)],
+             r"'faults\[0\]\.percent' must be > 0 and < 100")
+    _refused([FaultSection("friction_rise", 0.0, axis="slew")], r"'faults\[0\]\.percent' must be > 0")
+    _refused([FaultSection("mass_change", 0.0, mass=-5.0)], r"'faults\[0\]\.mass' must be > 0 kg")
+    _refused([FaultSection("mass_change", 0.0, mass=5.0, ramp=-1.0)], r"'faults\[0\]\.ramp' must be >= 0 s")
+    _refused([FaultSection("mass_change", 0.0, mass=5.0, axis="slew")], r"'faults\[0\]\.axis' is not used")
 
 
 def test_drive_trip_zeros_only_its_axis():

@@ -2,8 +2,11 @@
 
 A fault is a sensor or a drive that fails for a while: an encoder that sticks, drops out, drifts
 or turns noisy, a scanner blinded by dust, a belt scale that freezes, a drive that trips, or the
-controller's encoder readings arriving late. Each acts from `start` (s after the run's start)
-for `duration` s, or to the run's end without one. Engineers write angles in degrees: an
+controller's encoder readings arriving late; or the plant itself changing: an axis's friction
+rising (a seizing bearing), material caking at the wheel end (mass), a drive derated. A plant
+fault grows linearly over its `ramp` s from its start to its full size (a step without one).
+Each acts from `start` (s after the run's start) for `duration` s, or to the run's end without
+one. Engineers write angles in degrees: an
 encoder fault's `rate` is m/s on travel and deg/s on slew and luff, its `sigma` m or deg; the
 twin converts them to radians itself (bwr_twin.sensing.faults). A table is refused if it
 misses a key its kind needs or gives one its kind does not use: a key that is silently ignored
@@ -33,9 +36,13 @@ _KEYS = {
     "belt_scale_frozen": (),
     "drive_trip": ("axis",),
     "late_inputs": ("periods",),
+    "friction_rise": ("axis", "percent", "ramp"),
+    "mass_change": ("mass", "ramp"),
+    "drive_derate": ("axis", "percent", "ramp"),
 }
 FAULT_KINDS = tuple(_KEYS)
-_OPTIONAL = ("axis", "scanner", "rate", "sigma", "periods")  # the keys only some kinds use
+_OPTIONAL = ("axis", "scanner", "rate", "sigma", "periods", "percent", "mass", "ramp")  # keys only some kinds use
+PLANT_KINDS = ("friction_rise", "mass_change", "drive_derate")  # faults of the machine, not of its sensors
 _SCANNER_PREFIX = "scanner"  # a scanner is a site whose name starts with it (the model contract)
 
 # The most [[faults]] tables a scene file may hold, counted in its text before it is parsed: 100,000
@@ -61,7 +68,10 @@ class FaultSection:
     `axis` is travel, slew or luff (encoder_* and drive_trip); `scanner` a scanner site's name
     (scanner_blinded; None blinds every scanner); `rate` the drift (m/s on travel, deg/s on
     slew and luff); `sigma` the noise's standard deviation (m or deg); `periods` the control
-    periods late_inputs delays the readings by.
+    periods late_inputs delays the readings by; `percent` a friction rise's (of the axis's
+    viscous and Coulomb friction) or a drive derate's (of its force) full size; `mass` the kg
+    a mass change adds at the CP (the wheel end); `ramp` the s a plant fault takes to grow
+    from nothing to its full size (None: a step at its start).
     """
 
     kind: str
@@ -72,6 +82,9 @@ class FaultSection:
     rate: float | None = None  # m/s on travel, deg/s on slew and luff
     sigma: float | None = None  # m on travel, deg on slew and luff
     periods: int | None = None  # control periods
+    percent: float | None = None  # % of the nominal friction (friction_rise) or drive force (drive_derate)
+    mass: float | None = None  # kg added at the CP
+    ramp: float | None = None  # s from the start to the full size; None: a step
 
     @property
     def uses(self) -> tuple[str, ...]:
@@ -138,10 +151,24 @@ def _check_fault(path: Path, where: str, fault: FaultSection, runs_until: float 
                              "the readings arrive late")
         raise SceneError(f"{path}: '{where}.periods' must be an integer >= 1 for kind \"{kind}\", "
                          f"got {fault.periods!r}")
+    if "percent" in uses:
+        _check_percent(path, where, fault)
+    if "mass" in uses and not (is_number(fault.mass) and fault.mass > 0):
+        raise SceneError(f"{path}: '{where}.mass' must be > 0 kg (the material added at the CP) for kind "
+                         f"\"{kind}\", got {fault.mass!r}")
+    if fault.ramp is not None and not (is_number(fault.ramp) and fault.ramp >= 0):
+        raise SceneError(f"{path}: '{where}.ramp' must be >= 0 s (or left out: a step), got {fault.ramp!r}")
     if "scanner" in uses and fault.scanner is not None and not (
             isinstance(fault.scanner, str) and fault.scanner.startswith(_SCANNER_PREFIX)):
         raise SceneError(f"{path}: '{where}.scanner' must name a scanner site (its name starts with "
                          f"'{_SCANNER_PREFIX}'), or be left out to blind them all, got {fault.scanner!r}")
+
+
+def _check_percent(path: Path, where: str, fault: FaultSection) -> None:
+    high = 100.0 if fault.kind == "drive_derate" else 1000.0  # a drive derated by 100 % has tripped
+    if not (is_number(fault.percent) and 0 < fault.percent < high):
+        raise SceneError(f"{path}: '{where}.percent' must be > 0 and < {high:g} % for kind \"{fault.kind}\", "
+                         f"got {fault.percent!r}")
 
 
 def _check_axis(path: Path, where: str, fault: FaultSection) -> None:

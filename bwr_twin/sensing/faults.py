@@ -42,6 +42,16 @@ def fault_periods(fault: FaultSection, period: float) -> tuple[int, int]:
     return first, math.ceil((fault.start + fault.duration) / period - _TOLERANCE) - 1
 
 
+def ramp_periods(fault: FaultSection, period: float) -> int:
+    """The control periods a plant fault takes to reach its full size; 0: a step."""
+    return max(0, round((fault.ramp or 0.0) / period))
+
+
+def grown(periods_in: int, ramp: int) -> float:
+    """The share of its full size a plant fault has `periods_in` periods after its first."""
+    return 1.0 if periods_in >= ramp else (periods_in + 1) / ramp
+
+
 class _EncoderFault:
     """An encoder fault, scheduled: its axis's column and its rate or sigma in m or rad."""
 
@@ -90,6 +100,8 @@ class Faults:
         self._encoder = [_EncoderFault(f, i, period, seeds) for i, f in enumerate(faults) if f.kind in _ENCODER_KINDS]
         self._encoder_span = _span([(e.first, e.last) for e in self._encoder])
         self._trips = [(FAULT_AXES.index(f.axis), *fault_periods(f, period)) for f in faults if f.kind == "drive_trip"]
+        self._derates = [(FAULT_AXES.index(f.axis), *fault_periods(f, period), f.percent / 100.0,
+                          ramp_periods(f, period)) for f in faults if f.kind == "drive_derate"]
         self._blinded = [(f.scanner, *fault_periods(f, period)) for f in faults if f.kind == "scanner_blinded"]
         self._frozen = [fault_periods(f, period) for f in faults if f.kind == "belt_scale_frozen"]
         self._late = [(f.periods, *fault_periods(f, period)) for f in faults if f.kind == "late_inputs"]
@@ -113,7 +125,11 @@ class Faults:
             self._late_inputs(k, q_measured, qd_measured)
 
     def command(self, k: int, command: np.ndarray) -> None:
-        """Zero the drive force of every tripped axis in the (runs, 3) command of period k, in place."""
+        """Zero the drive force of every tripped axis in the (runs, 3) command of period k, and
+        scale down every derated one's, in place: the drive delivers that share of its command."""
+        for axis, first, last, share, ramp in self._derates:
+            if first <= k <= last:
+                command[:, axis] *= 1.0 - share * grown(k - first, ramp)
         for axis, first, last in self._trips:
             if first <= k <= last:
                 command[:, axis] = 0.0

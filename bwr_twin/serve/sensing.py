@@ -44,7 +44,7 @@ def fault_name(index: int, fault: FaultSection) -> str:
 def fault_meaning(index: int, fault: FaultSection) -> str:
     """What a fault's state says: the scene's table, and when it is true."""
     what = {"axis": fault.axis, "scanner": fault.scanner, "rate": fault.rate, "sigma": fault.sigma,
-            "periods": fault.periods}
+            "periods": fault.periods, "percent": fault.percent, "mass": fault.mass, "ramp": fault.ramp}
     details = ", ".join(f"{key} {value}" for key, value in what.items() if value is not None)
     window = f"from {fault.start:g} s" + (f" for {fault.duration:g} s" if fault.duration is not None else
                                           " to the run's end")

@@ -26,6 +26,7 @@ from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.parameters import RunParameters
 from bwr_twin.sim.plant import Plant
+from bwr_twin.sim.plant_faults import PlantFaults
 from bwr_twin.sim.tracking import BenchTracking, PathTracking, StackingTracking
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.reclaim_account import ReclaimAccount
@@ -119,6 +120,9 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
         order.append(_interlock(scene, machine, surface, runs, tracking, plant, reclaim, scanning, neighbour))
     if faults.active:
         order.append(stages.FaultsOnDrives(faults, scenes))
+        plant_faults = PlantFaults(scene.faults, machine, plant.batch, period)
+        if plant_faults.active:
+            order.append(stages.PlantFaultsStage(plant_faults, plant))
     return Parts(machine=machine, belief_machine=Machine(scene.controller_mjcf), tracking=tracking, plant=plant,
                  parameters=parameters, nthread=nthread, stages=tuple(order), faults=faults, reclaim=reclaim,
                  scanning=scanning, instruments=instruments, neighbour=neighbour, stacking=stacking)

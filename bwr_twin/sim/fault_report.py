@@ -21,7 +21,7 @@ from bwr_twin.units import SECONDS_PER_HOUR
 _TOLERANCE = 1e-9  # s: a sample this close to a window's boundary is on it
 _ERROR_UNITS = ("m", "deg", "deg")  # what the per-axis errors are reported in
 _TO_REPORT = np.array([1.0, math.degrees(1.0), math.degrees(1.0)])  # m; rad -> deg
-_GIVEN = ("axis", "scanner", "rate", "sigma", "periods")  # a fault's own keys, reported as the scene gives them
+_GIVEN = ("axis", "scanner", "rate", "sigma", "periods", "percent", "mass", "ramp")  # a fault's own keys, reported as the scene gives them
 
 
 def fault_metrics(faults: Sequence[FaultSection], time: np.ndarray, q_desired: np.ndarray, q: np.ndarray,
@@ -38,7 +38,7 @@ def fault_metrics(faults: Sequence[FaultSection], time: np.ndarray, q_desired: n
         rate: (n,) t/h the belt carried, or None without a reclaim.
         target_rate: t/h the reclaim aimed at, or None.
 
-    Each dict holds kind, the keys the fault gives (axis, scanner, rate, sigma, periods), `start_s`
+    Each dict holds kind, the keys the fault gives (axis, scanner, rate, sigma, periods, percent, mass, ramp), `start_s`
     and `end_s` (its end within the run: the run's end without a duration; None if it began
     after the run ended), `error_max_during` and `error_max_after` (per axis the largest
     |desired - actual|, `travel_m`, `slew_deg`, `luff_deg`; None where the window holds no

@@ -44,6 +44,7 @@ from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.fault_report import fault_metrics
 from bwr_twin.sim.neighbour import Neighbour
 from bwr_twin.sim.plant import Plant
+from bwr_twin.sim.plant_faults import PlantFaults
 from bwr_twin.sim.record import ReclaimRecord, Recorder, RunResult
 from bwr_twin.stockpile.reclaim import Reclaim
 from bwr_twin.stockpile.reclaim_account import ReclaimAccount
@@ -306,8 +307,19 @@ class InterlockStage(Stage):
             metrics["collision"]["interventions"] = self._guard.interventions(run)
 
 
+class PlantFaultsStage(Stage):
+    """The machine's friction and mass as its faults make them, before the physics step (bwr_twin.sim.plant_faults)."""
+
+    def __init__(self, faults: PlantFaults, plant: Plant):
+        self._faults, self._plant = faults, plant
+
+    def drives(self, k: int, applied: np.ndarray) -> None:
+        self._faults.step(k, self._plant.alive)
+
+
 class FaultsOnDrives(Stage):
-    """A tripped drive applies nothing, whatever commanded; and what each fault did, from the record."""
+    """A tripped drive applies nothing, whatever commanded, a derated one less; and what each fault did,
+    from the record."""
 
     def __init__(self, faults: Faults, scenes: Sequence[Scene]):
         self._faults, self._scenes = faults, scenes

@@ -1,0 +1,260 @@
+"""Fault detection and isolation on the shadow's residuals: one GLR test per fault hypothesis.
+
+Each hypothesis (a class on an axis) says how its fault would move a residual: its signature
+(bwr_twin.shadow.twin). Block by block, and for every onset within the last WINDOW blocks, the
+generalised likelihood ratio of "the residual is the signature times a size since that onset"
+against "the residual is noise" is (sum r s)^2 / sum s^2, the residuals and signatures divided
+by the residual's noise, learned per axis from a fault-free log. Its largest value over the
+onsets is the hypothesis's statistic, the onset and size that give it the alarm's onset and
+size. The size a fault seems to have on the fault-free log is taken off first: a drive's force
+follows the disturbances its controller fights, so a fault-free machine looks a few per cent
+derated. A fault is detected when any statistic exceeds its threshold; ISOLATE blocks later it
+is isolated to the hypothesis whose statistic is then the largest (the most likely: the fault
+that best explains what the residuals did). Each class and axis is raised once, and a change
+that began before the last alarm is the fault that alarm named.
+
+A stuck encoder is decided without a test: the encoder read the same position for a whole
+block while the axis moved by more than STUCK_COUNTS counts of the encoder (off for an encoder
+the fault-free log never saw step: its count is unknown).
+
+Thresholds: a threshold for `per_hour` false alarms per hour makes one test of the WINDOW onsets
+each block as unlikely to exceed it as the hours ask (Bonferroni over the tests of an hour, on
+the GLR's chi-squared law with one degree of freedom), and at least MARGIN times the largest the
+fault-free log itself gave: what the law misses of the real residuals (slow biases of the
+model), the log shows.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import chi2
+
+from bwr_twin.errors import BwrError
+from bwr_twin.shadow.twin import BLOCK, UNIT_MASS, Blocks
+
+AXES = ("travel", "slew", "luff")
+UNITS = ("m", "rad", "rad")
+WINDOW = 120  # blocks: the longest a fault's onset is looked back for
+MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
+ISOLATE = 5  # blocks between a fault's detection and its isolation
+STUCK_COUNTS = 3  # encoder counts an axis must move in a block for an unmoving reading to be stuck
+# The classes, what each means for maintenance (docs/shadow.md), and which way its size goes.
+CLASSES = {
+    "friction_rise": "a bearing, gearbox or bogie seizing: inspect and lubricate the axis",
+    "drive_derate": "the drive delivers less than it says: check the motor, the converter and the brake",
+    "mass_change": "material caked at the wheel end: clean the wheel and the boom",
+    "encoder_drift": "the position encoder slips or drifts against the drive's speed: re-reference it",
+    "stuck_encoder": "the position encoder reads no motion while the axis moves: replace it or its coupling",
+}
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """What a fault-free log taught: per axis the noise of the force residual (N, N m) and of
+    the drift residual (m/s, rad/s), their means, the encoder counts (m, rad; None for an
+    encoder the log never saw step: its stuck test is off), and the GLR
+    threshold of each hypothesis, for `per_hour` false alarms an hour."""
+
+    per_hour: float
+    force_mean: list[float]
+    force_sigma: list[float]
+    drift_mean: list[float]
+    drift_sigma: list[float]
+    counts: list[float | None]
+    thresholds: dict[str, float]
+    bias: dict[str, float]
+    block_s: float = BLOCK
+    window_blocks: int = WINDOW
+
+    def write(self, path: Path) -> None:
+        path.write_text(json.dumps(asdict(self), indent=1) + "\n")
+
+    @classmethod
+    def read(cls, path: Path) -> Thresholds:
+        try:
+            data = json.loads(path.read_text())
+            thresholds = cls(**data)
+        except (OSError, ValueError, TypeError) as exc:
+            raise BwrError(f"{path}: not a shadow's thresholds file ({exc})") from None
+        if thresholds.block_s != BLOCK or thresholds.window_blocks != WINDOW:
+            raise BwrError(f"{path}: thresholds learned with blocks of {thresholds.block_s} s and a window of "
+                           f"{thresholds.window_blocks}, this shadow uses {BLOCK} s and {WINDOW}: learn them again")
+        return thresholds
+
+
+@dataclass(frozen=True)
+class Alarm:
+    """A fault found: its class and axis ("wheel end" for a mass change), the time it was raised,
+    its estimated onset and size (`size` in `unit`; a stuck encoder's, how far the axis moved
+    unseen in its first block), and the statistic against its threshold."""
+
+    kind: str
+    axis: str
+    time_s: float
+    onset_s: float
+    size: float
+    unit: str
+    statistic: float
+    threshold: float
+
+    def describe(self) -> str:
+        """'slew friction_rise +35 % since 102.0 s (raised at 140.0 s)'."""
+        size = f"{self.size:+.3g} {self.unit}"
+        return (f"{self.axis} {self.kind} {size} since {self.onset_s:.1f} s (raised at {self.time_s:.1f} s): "
+                f"{CLASSES[self.kind]}")
+
+    def event(self) -> dict:
+        return {"event": "alarm", **asdict(self), "meaning": CLASSES[self.kind]}
+
+
+@dataclass(frozen=True)
+class _Hypothesis:
+    kind: str
+    axis: int  # -1: every axis (a mass change)
+    sided: bool  # True: only a positive size is this fault
+
+
+HYPOTHESES = tuple([_Hypothesis(kind, j, sided) for j in range(3)
+                    for kind, sided in (("friction_rise", True), ("drive_derate", True), ("encoder_drift", False))]
+                   + [_Hypothesis("mass_change", -1, False)])
+
+
+def _name(h: _Hypothesis) -> str:
+    return f"{h.kind}:{'wheel_end' if h.axis < 0 else AXES[h.axis]}"
+
+
+def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.ndarray]:
+    """(residual, signature) of a hypothesis, each (blocks,) in units of the noise."""
+    if h.kind == "encoder_drift":
+        j = h.axis
+        sigma = t.drift_sigma[j]
+        return (blocks.drift[:, j] - t.drift_mean[j]) / sigma, np.full(len(blocks.start), 1.0 / sigma)
+    sigma, mean = np.asarray(t.force_sigma), np.asarray(t.force_mean)
+    r = (blocks.force - mean) / sigma
+    s = {"friction_rise": blocks.friction, "drive_derate": blocks.derate, "mass_change": blocks.mass}[h.kind] / sigma
+    if h.axis >= 0:
+        r, s = r[:, h.axis], s[:, h.axis]
+    else:
+        r, s = r.ravel(), s.ravel()  # every axis: (blocks x 3,), summed by block below
+    return r - t.bias.get(_name(h), 0.0) * s, s
+
+
+def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The GLR statistic, its onset (block index) and size after each block.
+
+    r, s: (blocks x per,) whitened residuals and signatures, `per` entries a block. For block n,
+    onsets m = n - WINDOW + 1 .. n: g = max (sum_{m..n} r s)^2 / sum s^2, over sizes > 0 if `sided`."""
+    rs = (r * s).reshape(-1, per).sum(axis=1)
+    ss = (s * s).reshape(-1, per).sum(axis=1)
+    n = len(rs)
+    crs, css = np.concatenate([[0.0], np.cumsum(rs)]), np.concatenate([[0.0], np.cumsum(ss)])
+    g, onset, size = np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n)
+    for k in range(n):
+        m = np.arange(max(0, k - WINDOW + 1), k + 1)
+        num, den = crs[k + 1] - crs[m], css[k + 1] - css[m]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            theta = np.where(den > 0, num / den, 0.0)
+            stat = np.where(den > 0, num * theta, 0.0)
+        if sided:
+            stat = np.where(theta > 0, stat, 0.0)
+        best = int(np.argmax(stat))
+        g[k], onset[k], size[k] = stat[best], m[best], theta[best]
+    return g, onset, size
+
+
+def learn(blocks: Blocks, counts: np.ndarray, per_hour: float) -> Thresholds:
+    """Thresholds from the blocks of a fault-free log whose encoders count in `counts` (3,) (m,
+    rad), for `per_hour` false alarms per hour."""
+    if len(blocks.start) < 30:
+        raise BwrError(f"a fault-free log of {len(blocks.start)} whole blocks of {BLOCK:g} s: the noise needs 30 "
+                       "at least")
+    if not (per_hour > 0):
+        raise BwrError(f"--false-alarms-per-hour must be > 0, got {per_hour}")
+    counts = [float(c) if np.isfinite(c) else None for c in counts]  # None: never seen to step
+    base = Thresholds(per_hour, blocks.force.mean(0).tolist(), _sigma(blocks.force), blocks.drift.mean(0).tolist(),
+                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, {}, {})
+    bias = {}
+    for h in HYPOTHESES:  # the size each fault seems to have on the fault-free machine: its controller's share
+        r, s = _whitened(blocks, base, h)
+        bias[_name(h)] = float((r * s).sum() / max((s * s).sum(), 1e-300))
+    base = Thresholds(**{**asdict(base), "bias": bias})
+    tests_per_hour = 3600.0 / BLOCK * WINDOW * len(HYPOTHESES)
+    law = float(chi2.isf(per_hour / tests_per_hour, 1))
+    thresholds = {}
+    for h in HYPOTHESES:
+        r, s = _whitened(blocks, base, h)
+        g, _, _ = glr(r, s, 3 if h.axis < 0 else 1, h.sided)
+        thresholds[_name(h)] = max(law, MARGIN * float(g.max(initial=0.0)))
+    return Thresholds(**{**asdict(base), "thresholds": thresholds})
+
+
+def _known(counts: list[float | None]) -> np.ndarray:
+    """The counts as an array, 0 where unknown."""
+    return np.array([c or 0.0 for c in counts])
+
+
+def _sigma(values: np.ndarray, floor: np.ndarray | None = None) -> list[float]:
+    sigma = values.std(axis=0)
+    sigma = np.maximum(sigma, 1e-12 if floor is None else np.maximum(floor, 1e-12))
+    return sigma.tolist()
+
+
+def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
+    """The alarms over the log's blocks, each class and axis raised once, in time order."""
+    if not len(blocks.start):
+        return []
+    alarms = _stuck(blocks, t)
+    # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
+    blind = {AXES.index(a.axis): a.time_s for a in alarms}
+    ratios, found = [], []
+    for h in HYPOTHESES:
+        r, s = _whitened(blocks, t, h)
+        g, onset, size = glr(r, s, 3 if h.axis < 0 else 1, h.sided)
+        ratios.append(g / t.thresholds[_name(h)])
+        found.append((g, onset, size))
+    ratios = np.array(ratios)  # (hypotheses, blocks)
+    stats = np.array([g for g, _, _ in found])
+    raised_at = -math.inf  # s: the last alarm's time; a change that began before it is the fault it named
+    raised: set[str] = set()  # each class and axis is raised once
+    for k in np.flatnonzero(ratios.max(axis=0) > 1):
+        k = min(int(k) + ISOLATE, len(blocks.start) - 1)  # isolated on a few blocks more than it was detected on
+        best = int(np.argmax(stats[:, k]))
+        h = HYPOTHESES[best]
+        g, onset, size = (a[k] for a in found[best])
+        after_stuck = min((blind[j] for j in ([h.axis] if h.axis >= 0 else blind) if j in blind), default=math.inf)
+        if blocks.start[onset] > raised_at and _name(h) not in raised and blocks.end[k] < after_stuck:
+            raised_at = float(blocks.end[k])
+            raised.add(_name(h))
+            alarms.append(_alarm(blocks, t, h, k, int(onset), float(size), float(g)))
+    return sorted(alarms, key=lambda a: a.time_s)
+
+
+def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:
+    if h.kind == "mass_change":
+        value, unit, axis = size * UNIT_MASS, "kg", "wheel end"
+    elif h.kind == "encoder_drift":
+        value = size * (1.0 if h.axis == 0 else math.degrees(1.0))
+        unit, axis = ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
+    else:
+        value, unit, axis = 100.0 * size, "%", AXES[h.axis]
+    return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), value, unit, g,
+                 t.thresholds[_name(h)])
+
+
+def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
+    alarms = []
+    for j in range(3):
+        if t.counts[j] is None:  # an encoder never seen to step: how far is "moved" unknown
+            continue
+        stuck = blocks.still[:, j] & (np.abs(blocks.moved[:, j]) > STUCK_COUNTS * t.counts[j])
+        if stuck.any():
+            k = int(np.argmax(stuck))
+            alarms.append(Alarm("stuck_encoder", AXES[j], float(blocks.end[k]), float(blocks.start[k]),
+                                float(blocks.moved[k, j] * (1.0 if j == 0 else math.degrees(1.0))),
+                                ("m", "deg", "deg")[j], 1.0, 1.0))
+    return alarms

@@ -1,0 +1,207 @@
+"""The live shadow: an OPC UA client (asyncua) of the machine's PLC, reading the tags a tag map
+names, and the shadow over its samples as they arrive.
+
+Each poll reads every tag in one Read request, so that a sample's readings belong together; a
+poll that finds the time unchanged adds nothing. Every whole block of samples is handed to the
+twin as soon as it is complete, and the detectors run over the blocks so far (bwr_twin.shadow.
+detect, the same as over a log). When the source drops, the shadow says so, reconnects every
+RETRY s, and says when it is back: the samples it missed make a gap, which no block spans and
+which is reported as one, never as an alarm.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Callable
+
+import numpy as np
+from asyncua import Client, ua
+
+from bwr_twin.errors import BwrError
+from bwr_twin.shadow.detect import Alarm, Thresholds, detect
+from bwr_twin.shadow.measured import GAP, Measured
+from bwr_twin.shadow.tags import Tags
+from bwr_twin.shadow.twin import Blocks, ShadowTwin
+
+RETRY = 1.0  # s between attempts to reach a lost source
+REQUEST_TIMEOUT = 60.0  # s an OPC UA request may take on a busy machine
+
+
+class Source:
+    """The machine's PLC over OPC UA: its tags, checked once connected, read a sample at a time."""
+
+    def __init__(self, url: str, tags: Tags):
+        self.url, self.tags = url, tags
+        self._client: Client | None = None
+        self._nodes: list = []
+
+    async def connect(self) -> None:
+        """Connect and find every tag; BwrError naming a tag that is missing, not a Double, or in
+        another unit than the map needs."""
+        client = Client(self.url, timeout=REQUEST_TIMEOUT)
+        await client.connect()
+        try:
+            namespaces = await client.get_namespace_array()
+            if self.tags.namespace not in namespaces:
+                raise BwrError(f"{self.tags.path}: namespace {self.tags.namespace!r} is not served at {self.url}")
+            ns = namespaces.index(self.tags.namespace)
+            nodes = []
+            for node_id, what, unit in self.tags.nodes():
+                node = client.get_node(ua.NodeId(node_id, ns))
+                await _check_tag(node, node_id, what, unit, self.tags)
+                nodes.append(node)
+        except BaseException:
+            await _close(client)
+            raise
+        self._client, self._nodes = client, nodes
+
+    async def read(self) -> np.ndarray:
+        """(10,) the time (s), then per axis position, speed and force."""
+        values = await self._client.read_values(self._nodes)
+        return np.array(values, dtype=float)
+
+    async def close(self) -> None:
+        if self._client is not None:
+            await _close(self._client)
+            self._client = None
+
+
+async def _close(client: Client) -> None:
+    """Close a connection that may already be lost: one that is cannot be closed cleanly, and need not be."""
+    with contextlib.suppress(Exception):
+        await client.disconnect()
+
+
+async def _check_tag(node, node_id: str, what: str, unit: str, tags: Tags) -> None:
+    try:
+        value = await node.read_data_value()
+    except ua.UaStatusCodeError as exc:
+        raise BwrError(f"{tags.path}: tag {what} = {node_id!r}: {exc.__class__.__name__}: the node cannot be "
+                       "read (missing?)") from None
+    if value.Value is None or value.Value.VariantType != ua.VariantType.Double:
+        kind = None if value.Value is None else value.Value.VariantType.name
+        raise BwrError(f"{tags.path}: tag {what} = {node_id!r} is a {kind}, not the Double the shadow needs")
+    try:
+        units = await node.get_child("0:EngineeringUnits")
+        shown = (await units.read_value()).DisplayName.Text
+    except ua.UaStatusCodeError:
+        return  # a tag without EngineeringUnits: its unit is the map's word
+    if shown != unit:
+        raise BwrError(f"{tags.path}: tag {what} = {node_id!r} is in {shown}, the shadow needs {unit}")
+
+
+class LiveShadow:
+    """The shadow over a source's samples as they arrive: blocks, gaps and alarms so far.
+
+    `say(event)` hears every event (a dict, as events.jsonl holds them) as it happens: the source
+    lost and back, a gap, an alarm. Without `thresholds` (None) it only makes blocks, to learn
+    thresholds from (`blocks()`, `measured()`); set them and it detects from the next block on."""
+
+    def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None]):
+        self._twin, self.thresholds, self._say = twin, thresholds, say
+        self._samples: list[np.ndarray] = []
+        self._done = 0  # the first sample of the block not yet handed to the twin
+        self._blocks: list[Blocks] = []
+        self.alarms: list[Alarm] = []
+        self.gaps: list[tuple[float, float]] = []
+
+    @property
+    def time(self) -> float:
+        """s: the newest sample's time; 0 before the first."""
+        return float(self._samples[-1][0]) if self._samples else 0.0
+
+    def add(self, sample: np.ndarray) -> None:
+        """One sample (10,) as Source.read gives it; one whose time has not moved on adds nothing."""
+        if self._samples and sample[0] <= self._samples[-1][0]:
+            return
+        self._samples.append(sample)
+        self._advance()
+
+    def measured(self, start: int = 0) -> Measured:
+        """The samples from `start` on but the newest, whose force the next sample reads: a force
+        tag gives the force held over the period that ended at its sample's time."""
+        rows = np.array(self._samples[start:])
+        axes = rows[:, 1:].reshape(len(rows), 3, 3)
+        period = float(np.median(np.diff(rows[:, 0]))) if len(rows) > 1 else 1.0
+        return Measured(rows[:-1, 0], axes[:-1, :, 0], axes[:-1, :, 1], axes[1:, :, 2], period, axes[:-1, :, 1])
+
+    def _advance(self) -> None:
+        samples = self._samples
+        if len(samples) >= 3:
+            steps = np.diff([s[0] for s in samples[-3:]])
+            if steps[1] > GAP * steps[0]:  # the newest step is a gap: nothing before it makes a block with what follows
+                gap = (float(samples[-2][0]), float(samples[-1][0]))
+                self.gaps.append(gap)
+                self._say({"event": "gap", "time_s": gap[0], "from_s": gap[0], "to_s": gap[1],
+                           "meaning": "no samples: nothing is concluded over it"})
+                self._done = len(samples) - 1
+                return
+        tail = self.measured(self._done) if len(samples) - self._done > 3 else None
+        if tail is None:
+            return
+        blocks = self._twin.blocks(tail)
+        if not len(blocks.start):
+            return
+        self._blocks.append(blocks)
+        self._done += int(np.searchsorted(tail.time, blocks.end[-1]))
+        if self.thresholds is not None:
+            self._detect()
+
+    def _detect(self) -> None:
+        blocks = self.blocks()
+        known = {(a.kind, a.axis) for a in self.alarms}
+        for alarm in detect(blocks, self.thresholds):
+            if (alarm.kind, alarm.axis) not in known:
+                self.alarms.append(alarm)
+                self._say(alarm.event())
+
+    def blocks(self) -> Blocks:
+        """Every block so far."""
+        return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
+
+
+async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> bool:
+    """Read one sample into the shadow; on a dropped source say so, reconnect (every RETRY s until
+    it answers) and say when it is back. True if a sample was read."""
+    try:
+        shadow.add(await source.read())
+        return True
+    except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError, AttributeError):
+        say({"event": "source_lost", "time_s": shadow.time, "source": source.url})
+        await source.close()
+        await _reconnect(source, shadow, say)
+        return False
+
+
+async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> None:
+    """Try the source every RETRY s until it answers; say when it is back."""
+    while True:
+        try:
+            await source.connect()
+            break
+        except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError):
+            await asyncio.sleep(RETRY)
+    say({"event": "source_back", "time_s": shadow.time, "source": source.url})
+
+
+async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, poll: float,
+                   duration: float | None) -> None:
+    """Watch `source` every `poll` s for `duration` s (None: until cancelled); a source that cannot
+    be reached at the start is said so and tried again every RETRY s, as one that drops later."""
+    async def watch() -> None:
+        try:
+            await source.connect()
+        except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError):
+            say({"event": "source_lost", "time_s": 0.0, "source": source.url})
+            await _reconnect(source, shadow, say)
+        while True:
+            await poll_once(source, shadow, say)
+            await asyncio.sleep(poll)
+
+    try:
+        await asyncio.wait_for(watch(), duration)
+    except asyncio.TimeoutError:
+        pass
+    finally:
+        await source.close()

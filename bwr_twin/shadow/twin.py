@@ -1,0 +1,167 @@
+"""The shadow's twin: the machine's MJCF run beside the measured machine, block by block.
+
+The estimator is windowed resynchronisation: at the start of every block (BLOCK s) the twin's
+state is set to the measured one, and the twin runs through the block under the drives'
+measured forces; its position and speed at the block's end against the measured ones are the
+block's position and speed residuals. Within a block the twin is open loop, so a fault shows
+in it before any feedback can hide it; at the next block it starts afresh, so the residuals
+never build up from the disturbances of the past (a Kalman filter would need their statistics,
+which a shadow does not know before it has watched the machine).
+
+The force residual is MuJoCo's inverse dynamics (`mj_inverse`) on the measured motion less the
+drive's force, per sample and averaged over the block: the force the nominal machine needs to
+move as measured, less what the drive applied. Its mean acceleration over a block is the
+difference of the measured speeds at the block's ends over its length (the per-sample
+differences telescope), so the block's mean is free of the noise of differentiating a
+quantised encoder.
+
+Beside each residual, each fault's signature: the force residual a fault of unit size would
+give on the measured motion. A friction rise of share x gives -x times the nominal friction
+force (viscous and Coulomb); a derate of share x, -x times the drive's force; a mass change of
+m kg at the CP, -m times the inverse dynamics of a tonne there (gravity and inertia).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from bwr_twin.model.machine import Machine
+from bwr_twin.shadow.measured import GAP, Measured
+
+BLOCK = 1.0  # s: the length of a block, the resynchronisation window
+UNIT_MASS = 1000.0  # kg: the mass change a mass signature is of (a tonne at the CP)
+# The inverse dynamics of the free motion: no contacts, joint limits or friction-loss constraints
+# (the nominal Coulomb friction is added in closed form, by the sign of the measured speed).
+_INVERSE_OFF = (mujoco.mjtDisableBit.mjDSBL_CONSTRAINT | mujoco.mjtDisableBit.mjDSBL_CONTACT
+                | mujoco.mjtDisableBit.mjDSBL_LIMIT | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+
+
+@dataclass(frozen=True)
+class _UnitPayload:
+    """A payload of bwr_twin.model.spec's shape: the tonne at the CP a mass signature is of."""
+
+    body: str
+    mass: float
+    pos: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """The residuals and signatures of a log's blocks, (blocks, 3) per axis unless said.
+
+    start, end: (blocks,) s; force: the force residual (N, N m); position, speed: the twin's
+    prediction residuals at the block's end (m, rad; m/s, rad/s); drift: the encoder's mean
+    speed over the block less the drives' speed feedback's (m/s, rad/s; 0 without feedback);
+    still: whether the encoder read the same position through the block; moved: how far the
+    axis moved over it by the speed feedback (by the twin without it) (m, rad);
+    friction, derate, mass: the signatures of a unit friction rise, derate and mass change.
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    force: np.ndarray
+    position: np.ndarray
+    speed: np.ndarray
+    drift: np.ndarray
+    still: np.ndarray
+    moved: np.ndarray
+    friction: np.ndarray
+    derate: np.ndarray
+    mass: np.ndarray
+
+
+class ShadowTwin:
+    """The machine of an MJCF as the shadow runs it: forward under measured forces, and inverse."""
+
+    def __init__(self, mjcf: Path):
+        machine = Machine(mjcf)
+        self.machine = machine
+        self.model_name = machine.model.names[: machine.model.names.index(b"\0")].decode()  # <mujoco model=...>
+        self.limits = machine.drive_limits  # (3, 2) N, N m
+        self._model = machine.physics_model()
+        self._data = mujoco.MjData(self._model)
+        self._actuators = np.array(machine.actuator_ids, dtype=np.int64)
+        self._gear = machine.model.actuator_gear[self._actuators, 0].copy()
+        cp_body = int(machine.model.site_bodyid[machine.cp_site])
+        body = mujoco.mj_id2name(machine.model, mujoco.mjtObj.mjOBJ_BODY, cp_body)
+        at = tuple(float(x) for x in machine.model.site_pos[machine.cp_site])
+        heavier = Machine(mjcf, payloads=(_UnitPayload(body, UNIT_MASS, at),))
+        self._inverse = [self._free(machine.physics_model()), self._free(heavier.physics_model())]
+        self._inverse_data = [mujoco.MjData(m) for m in self._inverse]
+        self._damping = self._model.dof_damping[:3].copy()
+        self._frictionloss = self._model.dof_frictionloss[:3].copy()
+
+    @staticmethod
+    def _free(model: mujoco.MjModel) -> mujoco.MjModel:
+        model.opt.disableflags |= int(_INVERSE_OFF)  # this copy's own option: only inverse dynamics reads it
+        return model
+
+    def blocks(self, measured: Measured) -> Blocks:
+        """Every whole block of the log that no gap cuts, and its residuals."""
+        per_block = max(1, round(BLOCK / measured.period))
+        bounds = _whole_blocks(measured.time, measured.period, per_block)
+        rows = [self._block(measured, i0, i0 + per_block) for i0 in bounds]
+        if not rows:
+            empty = np.zeros((0, 3))
+            return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, np.zeros((0, 3), bool), empty,
+                          empty, empty, empty)
+        columns = list(zip(*rows))
+        return Blocks(*(np.array(c) for c in columns))
+
+    def _block(self, m: Measured, i0: int, i1: int):
+        """The residuals of samples i0 .. i1 - 1, whose forces act until sample i1."""
+        dt = np.diff(m.time[i0 : i1 + 1])[:, None]
+        qd = m.qd if m.speed is None else m.speed  # the drives' feedback: the encoder's filtered speed lags
+        qdd = (qd[i0 + 1 : i1 + 1] - qd[i0:i1]) / dt
+        nominal, heavier = (self._inverse_of(k, m.q[i0:i1], qd[i0:i1], qdd) for k in (0, 1))
+        friction_force = self._damping * qd[i0:i1] + self._frictionloss * np.sign(qd[i0:i1])
+        needed = nominal + np.sign(qd[i0:i1]) * self._frictionloss
+        force = m.force[i0:i1]
+        weights = dt / dt.sum()
+        q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0])
+        span = m.time[i1] - m.time[i0]
+        if m.speed is not None:
+            moved = (m.speed[i0:i1] * dt).sum(axis=0)
+            drift = (m.q[i1] - m.q[i0] - moved) / span
+        else:
+            moved, drift = q_end - m.q[i0], np.zeros(3)
+        return (m.time[i0], m.time[i1], ((needed - force) * weights).sum(axis=0), m.q[i1] - q_end,
+                qd[i1] - qd_end, drift, np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved,
+                -(friction_force * weights).sum(axis=0), -(force * weights).sum(axis=0),
+                -((heavier - nominal) * weights).sum(axis=0))
+
+    def _inverse_of(self, which: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        model, data = self._inverse[which], self._inverse_data[which]
+        out = np.empty_like(q)
+        for i in range(len(q)):
+            data.qpos[:3], data.qvel[:3], data.qacc[:3] = q[i], qd[i], qdd[i]
+            mujoco.mj_inverse(model, data)
+            out[i] = data.qfrc_inverse[:3]
+        return out
+
+    def _predict(self, q0: np.ndarray, qd0: np.ndarray, force: np.ndarray, dt: np.ndarray):
+        """The twin from (q0, qd0) under the forces held for dt each: its end position and speed."""
+        model, data = self._model, self._data
+        mujoco.mj_resetData(model, data)
+        data.qpos[:3], data.qvel[:3] = q0, qd0
+        step = model.opt.timestep
+        for f, span in zip(force, dt):
+            data.ctrl[self._actuators] = f / self._gear
+            mujoco.mj_step(model, data, nstep=max(1, round(span / step)))
+        return data.qpos[:3].copy(), data.qvel[:3].copy()
+
+
+def _whole_blocks(time: np.ndarray, period: float, per_block: int) -> list[int]:
+    """The first sample of every block of per_block samples (and the one after) no gap cuts."""
+    cut = np.flatnonzero(np.diff(time) > GAP * period)  # a gap follows sample i
+    starts, i0 = [], 0
+    for c in [*cut, len(time) - 1]:
+        while i0 + per_block <= c:
+            starts.append(i0)
+            i0 += per_block
+        i0 = c + 1
+    return starts

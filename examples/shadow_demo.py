@@ -1,0 +1,102 @@
+"""The shadow beside a served machine: `python -m bwr_twin.serve` plays the heavy machine with a
+plant fault at a time this script does not print until the end, a PLC (a per-axis PID at 10 Hz,
+in lockstep) drives it along scenes/heavy_shadow.toml's path, and the live shadow, a second OPC
+UA client, watches it and prints its events as they happen.
+
+    python examples/shadow_demo.py [--seed N]          # or: make shadow
+
+The shadow learns its thresholds from the first LEARN s, which are fault-free; the fault (a
+friction rise, a mass change or a derate, drawn from the seed) starts later.
+"""
+
+import argparse
+import asyncio
+import json
+import socket
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from asyncua import Client, ua
+
+from bwr_twin.shadow.detect import learn
+from bwr_twin.shadow.live import LiveShadow, Source, poll_once
+from bwr_twin.shadow.measured import encoder_counts
+from bwr_twin.shadow.tags import read_tags
+from bwr_twin.shadow.twin import ShadowTwin
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "heavy_shadow.toml"
+MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
+TAGS = ROOT / "examples" / "shadow_tags.toml"
+AXES = ("Travel", "Slew", "Luff")
+STEP, PERIOD = 10, 0.01  # control periods a PLC cycle, and their length in s
+SECONDS, LEARN = 300.0, 90.0  # s: the path, and its fault-free start the thresholds are learned on
+KP, KD, KI = (1193000.0, 705600000.0, 652700000.0), (2386000.0, 1411200000.0, 1305400000.0), \
+    (298250.0, 176400000.0, 163175000.0)  # pid_heavy.toml's gains
+HOLD = (0.0, 0.0, 11203667.5)  # N, N m, N m: the luff's holding torque
+FAULTS = ('kind = "friction_rise"\naxis = "slew"\npercent = 40.0', 'kind = "mass_change"\nmass = 10000.0',
+          'kind = "drive_derate"\naxis = "travel"\npercent = 20.0')
+
+
+async def watch(url: str) -> None:
+    twin = ShadowTwin(MJCF)
+    shadow = LiveShadow(twin, None, lambda event: print(json.dumps(event), flush=True))
+    source = Source(url, read_tags(TAGS, twin.model_name))
+    await source.connect()
+    async with Client(url, timeout=60) as plc:
+        ns = await plc.get_namespace_index("urn:bwr_twin:reclaimer")
+
+        def node(name):
+            return plc.get_node(ua.NodeId(name, ns))
+
+        measured = [node(f"Reclaimer.{a}.{s}") for s in ("EncoderPosition", "EncoderVelocity") for a in AXES]
+        reference = [node(f"Reclaimer.{a}.{s}") for s in ("ReferencePosition", "ReferenceVelocity") for a in AXES]
+        setpoints = [node(f"Reclaimer.{a}.DriveSetpoint") for a in AXES]
+        reclaimer, step = node("Reclaimer"), node("Reclaimer.Step")
+        integral = np.zeros(3)
+        for cycle in range(round(SECONDS / (STEP * PERIOD))):
+            values = np.array(await plc.read_values(measured + reference))
+            error, rate = values[6:9] - values[0:3], values[9:12] - values[3:6]
+            integral += error * STEP * PERIOD
+            forces = np.array(HOLD) + np.array(KP) * error + np.array(KD) * rate + np.array(KI) * integral
+            await plc.write_values(setpoints, [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
+            await reclaimer.call_method(step, ua.Variant(STEP, ua.VariantType.UInt32))
+            await poll_once(source, shadow, print)
+            if shadow.thresholds is None and shadow.time >= LEARN:
+                shadow.thresholds = learn(shadow.blocks(), encoder_counts(shadow.measured()), 0.01)
+                print(f"thresholds learned on the first {LEARN:g} s; watching", flush=True)
+            if cycle % 300 == 0:
+                print(f"t = {shadow.time:.0f} s", flush=True)
+    await source.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seed", type=int, default=None, help="draws the fault and its time (default: at random)")
+    args = parser.parse_args()
+    rng = np.random.default_rng(args.seed)
+    fault, start = FAULTS[rng.integers(len(FAULTS))], float(round(rng.uniform(LEARN + 20, SECONDS - 60)))
+    with tempfile.TemporaryDirectory() as folder, socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        url = f"opc.tcp://127.0.0.1:{probe.getsockname()[1]}"
+        probe.close()
+        scene = Path(folder) / "machine.toml"
+        scene.write_text(f'extends = "{SCENE}"\n[[faults]]\n{fault}\nstart = {start}\n')
+        server = subprocess.Popen([sys.executable, "-m", "bwr_twin.serve", str(scene), "--endpoint", url],
+                                  stdout=subprocess.PIPE, text=True)
+        try:
+            for line in server.stdout:
+                if line.startswith("Ctrl-C stops"):
+                    break
+            asyncio.run(watch(url))
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+    print(f"the machine's fault was: {' '.join(fault.split())}, from {start:g} s")
+
+
+if __name__ == "__main__":
+    main()

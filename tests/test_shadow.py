@@ -1,0 +1,137 @@
+"""The shadow over recorded logs: the twin plays the machine (scenes/heavy_shadow.toml) with each
+plant and encoder fault; the shadow, its thresholds learned from a fault-free log of seed 1,
+names the right fault after its onset, with its size, and nothing on a fault-free log of another
+seed, or across a gap in one."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bwr_twin.config.scene import load_scene
+from bwr_twin.results.rundir import write_run
+from bwr_twin.shadow.detect import Thresholds
+from bwr_twin.shadow.twin import ShadowTwin
+from bwr_twin.shadow.watch import learn_from, watch
+from bwr_twin.sim.lockstep import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "heavy_shadow.toml"
+MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
+
+# Each fault: its [[faults]] table, and what the shadow must say: class, axis, the size it
+# estimates (within a share of the true one) in the alarm's unit. Onsets fall while the faulty
+# axis moves (scenes/heavy_shadow.toml's via points).
+FAULTS = {
+    "friction_rise": ('kind = "friction_rise"\naxis = "slew"\npercent = 20.0\nstart = 100.0',
+                      "friction_rise", "slew", 100.0, 20.0, 0.5),
+    "mass_change": ('kind = "mass_change"\nmass = 15000.0\nstart = 120.0', "mass_change", "wheel end", 120.0,
+                    15000.0, 0.2),
+    "drive_derate": ('kind = "drive_derate"\naxis = "travel"\npercent = 15.0\nstart = 100.0', "drive_derate",
+                     "travel", 100.0, 15.0, 0.2),
+    "encoder_drift": ('kind = "encoder_drift"\naxis = "travel"\nrate = 0.0016667\nstart = 100.0', "encoder_drift",
+                      "travel", 100.0, 0.0016667, 0.2),  # 0.1 m over a minute
+    "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.0', "stuck_encoder", "slew", 120.0,
+                      None, None),
+}
+
+
+def _run(folder: Path, name: str, extra: str) -> Path:
+    scene_file = folder / f"{name}.toml"
+    scene_file.write_text(f'extends = "{SCENE}"\n{extra}\n')
+    out = folder / name
+    write_run(simulate(load_scene(scene_file), nthread=1), out, plots=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("shadow")
+    runs = {"baseline": _run(folder, "baseline", ""),
+            "fault_free": _run(folder, "fault_free", "[simulation]\nseed = 2")}
+    for name, (table, *_) in FAULTS.items():
+        runs[name] = _run(folder, name, f"[[faults]]\n{table}")
+    return runs
+
+
+@pytest.fixture(scope="module")
+def twin() -> ShadowTwin:
+    return ShadowTwin(MJCF)
+
+
+@pytest.fixture(scope="module")
+def thresholds(twin, logs) -> Thresholds:
+    return learn_from(twin, logs["baseline"], 0.01)
+
+
+def test_a_plant_fault_changes_nothing_before_its_start(logs):
+    """No fault, no change: the runs with a fault are the fault-free run, bit for bit, until it acts."""
+    base = np.loadtxt(logs["baseline"] / "timeseries.csv", delimiter=",", skiprows=1)
+    for name in ("friction_rise", "mass_change", "drive_derate"):
+        faulty = np.loadtxt(logs[name] / "timeseries.csv", delimiter=",", skiprows=1)
+        before = base[:, 0] < FAULTS[name][3] - 1e-9
+        assert np.array_equal(base[before], faulty[before]), name
+        assert not np.array_equal(base[~before], faulty[~before]), f"{name} did nothing"
+
+
+@pytest.mark.parametrize("name", list(FAULTS))
+def test_each_fault_is_named_after_its_onset_with_its_size(name, twin, logs, thresholds):
+    _, kind, axis, onset, size, share = FAULTS[name]
+    alarms = watch(twin, logs[name], thresholds).alarms
+    assert alarms, f"{name}: no alarm"
+    first = alarms[0]
+    assert (first.kind, first.axis) == (kind, axis), first.describe()
+    assert first.time_s >= onset
+    if size is not None:
+        assert first.size == pytest.approx(size, rel=share), first.describe()
+    if kind == "stuck_encoder":
+        assert first.time_s <= onset + 2.0  # within the 2 s target
+    print(name, first.describe(), f"delay {first.time_s - onset:.0f} s")
+
+
+def test_a_fault_free_log_raises_nothing(twin, logs, thresholds):
+    assert watch(twin, logs["fault_free"], thresholds).alarms == []
+
+
+def test_a_gap_is_a_gap_not_an_alarm(twin, logs, thresholds, tmp_path):
+    """20 s of the fault-free log lost: one gap event over them, and still no alarm."""
+    lines = (logs["fault_free"] / "timeseries.csv").read_text().splitlines()
+    times = [float(line.split(",", 1)[0]) for line in lines[1:]]
+    kept = [lines[0]] + [line for line, t in zip(lines[1:], times) if not 140.0 < t < 160.0]
+    (tmp_path / "timeseries.csv").write_text("\n".join(kept) + "\n")
+    watched = watch(twin, tmp_path / "timeseries.csv", thresholds)
+    assert watched.alarms == []
+    assert [(e["event"], round(e["from_s"]), round(e["to_s"])) for e in watched.events()] == [("gap", 140, 160)]
+
+
+def test_the_command_line_writes_events_and_thresholds_it_can_reuse(logs, tmp_path):
+    out = tmp_path / "watched"
+    command = [sys.executable, "-m", "bwr_twin.shadow", "--log", str(logs["friction_rise"]), "--model", str(MJCF)]
+    done = subprocess.run([*command, "--baseline", str(logs["baseline"]), "--out", str(out)], check=False,
+                          capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert "alarm: slew friction_rise" in done.stdout
+    (event,) = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    assert (event["event"], event["kind"], event["axis"], event["unit"]) == ("alarm", "friction_rise", "slew", "%")
+    again = subprocess.run([*command, "--thresholds", str(out / "thresholds.json"), "--out", str(tmp_path / "again")],
+                           check=False, capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert (tmp_path / "again" / "events.jsonl").read_text() == (out / "events.jsonl").read_text()
+
+
+def test_bad_input_is_one_line(logs, tmp_path):
+    junk = tmp_path / "thresholds.json"
+    junk.write_text("{}")
+    for args, says in ((["--log", str(tmp_path / "nowhere"), "--baseline", str(logs["baseline"])], "no log there"),
+                       (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file")):
+        done = subprocess.run([sys.executable, "-m", "bwr_twin.shadow", *args, "--model", str(MJCF),
+                               "--out", str(tmp_path / "out")], check=False, capture_output=True, text=True,
+                              cwd=ROOT, timeout=600)
+        assert done.returncode == 2
+        assert len(done.stderr.strip().splitlines()) == 1 and says in done.stderr, done.stderr
+        assert not (tmp_path / "out").exists()

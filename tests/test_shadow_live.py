@@ -1,0 +1,149 @@
+"""The live shadow as a real OPC UA client of `python -m bwr_twin.serve` playing the heavy machine
+(scenes/heavy_shadow.toml), driven by a PLC client (a per-axis PID at 10 Hz): thresholds learned
+from a fault-free machine's session; on the machine with a slew friction rise, the alarm names
+it, through a dropped connection that is reported and becomes a gap, with no false alarm; and
+a tag map for another machine, or a tag that is missing, is one line."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from asyncua import ua
+from conftest import ROOT
+from test_serve import CALL_TIMEOUT, Launched, client, environment, free_port
+
+from bwr_twin.errors import BwrError
+from bwr_twin.shadow.detect import learn
+from bwr_twin.shadow.live import LiveShadow, Source, poll_once
+from bwr_twin.shadow.measured import encoder_counts
+from bwr_twin.shadow.tags import read_tags
+from bwr_twin.shadow.twin import Blocks, ShadowTwin
+
+SCENE = ROOT / "scenes" / "heavy_shadow.toml"
+MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
+TAGS = ROOT / "examples" / "shadow_tags.toml"
+AXES = ("Travel", "Slew", "Luff")
+STEP = 10  # control periods a PLC cycle: 0.1 s
+SECONDS = 40.0  # the path's first slew, 8 deg
+ONSET = 8.0  # s: the friction rise's start
+# pid_heavy.toml's gains and the luff's holding torque
+KP, KD, KI = (1193000.0, 705600000.0, 652700000.0), (2386000.0, 1411200000.0, 1305400000.0), \
+    (298250.0, 176400000.0, 163175000.0)
+HOLD = (0.0, 0.0, 11203667.5)
+
+
+async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | None = None) -> None:
+    """A PLC at 10 Hz for SECONDS; the shadow polls after every cycle; at `drop_at` s its
+    connection is cut and the PLC runs a second on before the shadow polls again."""
+    source = Source(url, read_tags(TAGS, "bwr_heavy"))
+    await source.connect()
+    async with client(url) as plc:
+        ns = await plc.get_namespace_index("urn:bwr_twin:reclaimer")
+
+        def node(name):
+            return plc.get_node(ua.NodeId(name, ns))
+
+        measured = [node(f"Reclaimer.{a}.{s}") for s in ("EncoderPosition", "EncoderVelocity") for a in AXES]
+        reference = [node(f"Reclaimer.{a}.{s}") for s in ("ReferencePosition", "ReferenceVelocity") for a in AXES]
+        setpoints = [node(f"Reclaimer.{a}.DriveSetpoint") for a in AXES]
+        reclaimer, step = node("Reclaimer"), node("Reclaimer.Step")
+        integral, cycles = np.zeros(3), round(SECONDS / (STEP * 0.01))
+        for cycle in range(cycles):
+            values = np.array(await plc.read_values(measured + reference))
+            error, rate = values[6:9] - values[0:3], values[9:12] - values[3:6]
+            integral += error * STEP * 0.01
+            forces = np.array(HOLD) + np.array(KP) * error + np.array(KD) * rate + np.array(KI) * integral
+            await plc.write_values(setpoints, [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
+            await reclaimer.call_method(step, ua.Variant(STEP, ua.VariantType.UInt32))
+            now = (cycle + 1) * STEP * 0.01
+            if drop_at is not None and drop_at <= now < drop_at + 1.0:
+                if now - drop_at < STEP * 0.01 / 2:
+                    await source._client.disconnect()  # the network drops the shadow's session
+                continue
+            await poll_once(source, shadow, events.append)
+    await source.close()
+
+
+def served(scene, coroutine_of):
+    server = Launched(scene)
+    try:
+        return asyncio.run(asyncio.wait_for(coroutine_of(server.ready()), CALL_TIMEOUT * 3))
+    finally:
+        assert server.stop() == 0, server.stderr
+
+
+@pytest.fixture(scope="module")
+def twin() -> ShadowTwin:
+    return ShadowTwin(MJCF)
+
+
+async def missing_tag_then_session(url: str, wrong_tags, shadow: LiveShadow, events: list) -> None:
+    """A tag map naming a node the server lacks is refused in one line; then a session."""
+    with pytest.raises(BwrError, match=r"tag luff.speed = 'Reclaimer.Luff.Tachometer': .*cannot be read"):
+        await Source(url, read_tags(wrong_tags, "bwr_heavy")).connect()
+    await session(url, shadow, events)
+
+
+def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tmp_path):
+    """Also: a tag that is missing is one line, as the shadow connects."""
+    wrong = tmp_path / "tags.toml"
+    wrong.write_text(TAGS.read_text().replace("Reclaimer.Luff.EncoderVelocity", "Reclaimer.Luff.Tachometer"))
+    free: list = []
+    baseline = LiveShadow(twin, None, free.append)
+    served(SCENE, lambda url: missing_tag_then_session(url, wrong, baseline, free))
+    assert free == []
+    measured = baseline.measured()
+    thresholds = learn(baseline.blocks(), encoder_counts(measured), 0.01)
+
+    faulty = tmp_path / "faulty.toml"
+    faulty.write_text(f'extends = "{SCENE}"\n[[faults]]\nkind = "friction_rise"\naxis = "slew"\npercent = 60.0\n'
+                      f"start = {ONSET}\n")
+    events: list = []
+    shadow = LiveShadow(twin, thresholds, events.append)
+    served(faulty, lambda url: session(url, shadow, events, drop_at=25.0))
+    kinds = [e["event"] for e in events]
+    assert "source_lost" in kinds and "source_back" in kinds, events
+    (gap,) = [e for e in events if e["event"] == "gap"]
+    assert 24.0 < gap["from_s"] < gap["to_s"] < 27.0
+    alarms = [e for e in events if e["event"] == "alarm"]
+    assert [(a["kind"], a["axis"]) for a in alarms] == [("friction_rise", "slew")], events
+    assert alarms[0]["time_s"] >= ONSET
+
+
+def test_a_map_for_another_machine_is_one_line():
+    with pytest.raises(BwrError, match="the tag map is for machine 'bwr_heavy', the model is 'bwr'"):
+        read_tags(TAGS, "bwr")
+
+
+def test_the_command_line_says_an_unreachable_source_is_lost_and_keeps_trying(tmp_path):
+    thresholds = tmp_path / "thresholds.json"
+    learn(_still_blocks(), np.array([0.00153, 0.00153, 0.00076]), 0.01).write(thresholds)
+    command = [sys.executable, "-m", "bwr_twin.shadow", "--source", f"opc.tcp://127.0.0.1:{free_port()}",
+               "--tags", str(TAGS), "--model", str(MJCF), "--thresholds", str(thresholds)]
+    done = subprocess.run([*command, "--duration", "3"], check=False, capture_output=True, text=True, cwd=ROOT,
+                          env=environment(), timeout=600)
+    assert done.returncode == 0, done.stderr
+    events = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [e["event"] for e in events] == ["source_lost"]
+    paper = [*command[:-4], "--model", str(ROOT / "mjcf" / "bwr.xml"), "--thresholds", str(thresholds)]
+    other = subprocess.run(paper, check=False, capture_output=True, text=True, cwd=ROOT, env=environment(), timeout=600)
+    assert other.returncode == 2 and len(other.stderr.strip().splitlines()) == 1
+    assert "a map for another machine is refused" in other.stderr
+
+
+def _still_blocks():
+    """Blocks of a machine at rest under noise: enough to learn thresholds from."""
+    rng = np.random.default_rng(1)
+    n = 40
+
+    def noise(scale):
+        return rng.normal(0.0, scale, (n, 3))
+
+    zeros = np.zeros((n, 3))
+    return Blocks(np.arange(n, dtype=float), np.arange(1, n + 1, dtype=float), noise(1e3), zeros, zeros,
+                  noise(1e-4), np.zeros((n, 3), bool), zeros, noise(1e3), noise(1e3), noise(1e3))
