@@ -23,8 +23,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("sim",),  # the plant, encoders and drives, the lockstep loop, one run advanced a period at a time
     ("results",),  # run directories, summaries and figures
     ("run",),  # one scene simulated from the command line
-    # the front ends: sweeps, comparison of runs, FMU and PLC export, gym, replay, the OPC UA server
-    ("batch", "compare", "export", "gym", "replay", "serve"),
+    # the front ends: sweeps, comparison of runs, FMU and PLC export, gym, replay, the OPC UA server,
+    # calibration from a machine's logs
+    ("batch", "compare", "export", "gym", "replay", "serve", "calibrate"),
     ("tune",),  # gain tuning over batches
     ("bwr_twin",),  # the package itself: what `import bwr_twin` gives
 )

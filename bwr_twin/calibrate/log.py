@@ -1,0 +1,93 @@
+"""A machine's log, as the fit reads it: per axis the encoder position, the drive's force and,
+where recorded, the speed feedback; the wind speed where recorded. From a run directory the twin
+wrote (its timeseries.csv) or a plant historian's CSV with a column map (`historian`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bwr_twin.errors import BwrError
+from bwr_twin.model.machine import AXES, Machine
+
+
+@dataclass(frozen=True)
+class MachineLog:
+    """One log: every array a row per sample, in SI units, per axis travel, slew, luff."""
+
+    path: Path
+    time: np.ndarray  # (n,) s, increasing
+    q: np.ndarray  # (n, 3) m, rad: the encoders
+    force: np.ndarray  # (n, 3) N, N m: what the drives applied
+    qd: np.ndarray | None = None  # (n, 3) m/s, rad/s: the speed feedback, if recorded
+    wind: np.ndarray | None = None  # (n,) m/s, if recorded
+
+    @property
+    def rate(self) -> float:
+        """The median sample rate in Hz."""
+        return float(1.0 / np.median(np.diff(self.time)))
+
+    def velocity(self) -> np.ndarray:
+        """The speed feedback, or the encoders differentiated where there is none (m/s, rad/s)."""
+        if self.qd is not None:
+            return self.qd
+        return np.gradient(self.q, self.time, axis=0)
+
+
+MIN_RATE, MAX_RATE = 1.0, 1000.0  # Hz: the rates a log may have
+
+
+def read_log(path: str | Path, machine: Machine, column_map: Path | None = None) -> MachineLog:
+    """The log at `path`: a run directory the twin wrote, or a historian's CSV read through
+    `column_map` (a TOML file). Checked: rate, time, finiteness; a problem is one BwrError naming
+    the file, the column and the row."""
+    path = Path(path)
+    if path.is_dir():
+        log = _run_directory(path, machine)
+    elif column_map is not None:
+        from bwr_twin.calibrate.historian import read_historian
+
+        log = read_historian(path, column_map, machine)
+    else:
+        raise BwrError(f"{path}: not a run directory the twin wrote; a historian's CSV needs --columns MAP.toml")
+    check_log(log)
+    return log
+
+
+def _run_directory(path: Path, machine: Machine) -> MachineLog:
+    from bwr_twin.results.run_files import read_timeseries
+
+    csv = path / "timeseries.csv"
+    if not csv.is_file():
+        raise BwrError(f"{path}: holds no timeseries.csv; a log is a run directory the twin wrote or a "
+                       "historian's CSV with --columns")
+    series = read_timeseries(csv, envelope=machine.envelope)
+    signals = series.signals
+    return MachineLog(path=path, time=series.time, q=signals["q_measured"], force=signals["drive_force"],
+                      qd=signals["qd_measured"], wind=series.wind_speed)
+
+
+def check_log(log: MachineLog) -> None:
+    """The checks every log meets, whatever its source: enough rows, a rate within MIN_RATE to
+    MAX_RATE, time increasing, every value finite."""
+    what = str(log.path)
+    if len(log.time) < 10:
+        raise BwrError(f"{what}: {len(log.time)} rows; a log to fit needs at least 10")
+    steps = np.diff(log.time)
+    if not (steps > 0).all():
+        row = int(np.argmax(~(steps > 0))) + 2
+        raise BwrError(f"{what}: row {row}: time {log.time[row - 1]:g} s does not come after the row before's "
+                       f"{log.time[row - 2]:g} s (time runs backwards or repeats)")
+    rate = log.rate
+    if not MIN_RATE <= rate <= MAX_RATE:
+        raise BwrError(f"{what}: sampled at {rate:g} Hz; a log to fit is sampled at {MIN_RATE:g} to {MAX_RATE:g} Hz")
+    for name, values in (("position", log.q), ("force", log.force), ("speed", log.qd)):
+        if values is None:
+            continue
+        bad = ~np.isfinite(values)
+        if bad.any():
+            row, axis = np.argwhere(bad)[0]
+            raise BwrError(f"{what}: row {row + 1}: the {AXES[axis]} {name} is {values[row, axis]} (not a finite "
+                           "number)")
