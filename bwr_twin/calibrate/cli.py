@@ -134,14 +134,12 @@ def _calibrated_xml(model: Path, logs: list[Path], result) -> str:
     date = datetime.date.today().isoformat()
     source = ", ".join(str(p) for p in logs)
     changes = []
-    first = True
     for e in result.estimates:
         k = e.knob
         if not e.identifiable or k.kind in ("lag", "offset"):
             continue
-        comment = (f"{'calibrated from ' + source + ' on ' + date + ': ' if first else ''}{k.kind} was "
-                   f"{k.nominal:.6g} {k.unit}, 95 % interval [{e.interval[0]:.6g}, {e.interval[1]:.6g}] {k.unit}")
-        first = False
+        comment = (f"{k.kind} was {k.nominal:.6g} {k.unit}, 95 % interval [{e.interval[0]:.6g}, "
+                   f"{e.interval[1]:.6g}] {k.unit}")
         if k.kind in ("damping", "frictionloss", "armature"):
             changes.append(("joint", k.element, k.kind, 0, f"{e.fitted:.6g}", comment))
         elif k.kind == "mass":
@@ -153,7 +151,7 @@ def _calibrated_xml(model: Path, logs: list[Path], result) -> str:
     except (OSError, UnicodeDecodeError) as exc:
         raise BwrError(f"{model}: cannot be read as text: {exc}") from None
     try:
-        return edit(text, changes)
+        return edit(text, changes, prefix=f"calibrated from {source} on {date}: ")
     except BwrError as exc:
         raise BwrError(f"{model}: {exc}") from None
 

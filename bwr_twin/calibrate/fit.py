@@ -109,7 +109,7 @@ class Problem:
                 rows = slice(first, last + 1)
                 ctrl = np.zeros((steps + 1, model.nu))
                 for j, a in enumerate(actuators):
-                    ctrl[:, a] = _hold(log.time[rows], log.force[rows, j], t0 + control_grid) / gear[j]
+                    ctrl[:, a] = np.interp(t0 + control_grid, log.time[rows], log.force[rows, j]) / gear[j]
                 measured = log.q[rows] if not self.velocity else np.hstack([log.q[rows], log.qd[rows]])
                 sampled = np.column_stack([np.interp(t0 + sample_grid, log.time[rows], measured[:, c])
                                            for c in range(measured.shape[1])])

@@ -43,10 +43,10 @@ def set_attribute(tag: str, attribute: str, value: str, index: int = 0) -> str:
     return tag[:found.start(3)] + " ".join(numbers) + tag[found.end(3):]
 
 
-def edit(text: str, changes: list[tuple[str, str, str, int, str, str]]) -> str:
+def edit(text: str, changes: list[tuple[str, str, str, int, str, str]], prefix: str = "") -> str:
     """`text` with each change made: (element kind "joint" or "body", its name, attribute, index in
     the attribute, new value, note). A body's "mass" goes into its `<inertial>`. The notes of one
-    tag make one comment after it, in the order given."""
+    tag make one comment after it, in the order given, after `prefix`."""
     grouped: dict[tuple[str, str, str], list[tuple[str, int, str, str]]] = {}
     for kind, name, attribute, index, value, note in changes:
         inner = "inertial" if kind == "body" and attribute == "mass" else kind
@@ -58,6 +58,6 @@ def edit(text: str, changes: list[tuple[str, str, str, int, str, str]]) -> str:
         new = tag.group(0)
         for attribute, index, value, _ in edits:
             new = set_attribute(new, attribute, value, index)
-        comment = "; ".join(note for *_, note in edits).replace("--", "- -")  # a comment may not hold '--'
+        comment = (prefix + "; ".join(note for *_, note in edits)).replace("--", "- -")  # a comment may not hold '--'
         text = text[:tag.start()] + new + f" <!-- {comment} -->" + text[tag.end():]
     return text

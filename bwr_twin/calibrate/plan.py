@@ -78,9 +78,22 @@ def test_motion(machine, minutes: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def scene_text(machine, mjcf: Path, out: Path, minutes: float) -> str:
-    """The test as a scene TOML: the machine, the path as world via points, the twin's timing,
-    the paper's encoders, and a PID on the machine's own inertia and gravity at the start."""
+    """The test as a scene TOML (`scene_for`)."""
     times, points = test_motion(machine, minutes)
+    header = [
+        f"# A calibration test of {machine.name} ({Path(mjcf).name}): {minutes:g} minutes during a stop, the wheel",
+        "# not digging. Each axis moves rest to rest both ways at 30, 60 and 95 % of its rated speed, holding 5 s",
+        "# after each move; the slew and the luff swing about several angles. Run it on the machine and log, at",
+        "# 1 to 1,000 Hz, each axis's encoder, drive torque (or current) and speed feedback; then",
+        "# python -m bwr_twin.calibrate fit LOG --model MJCF --out DIR. Units: SI (m, rad, s, N, N m).",
+    ]
+    return scene_for(machine, mjcf, out, times, points, header)
+
+
+def scene_for(machine, mjcf: Path, out: Path, times: np.ndarray, points: np.ndarray, header: list[str]) -> str:
+    """A scene TOML moving the machine of `mjcf` through joint values `points` (k, 3) at `times`
+    (s): the path as world via points, the twin's timing, the paper's encoders, no digging, and a
+    PID on the machine's own inertia and gravity at the start."""
     cps = machine.fk(points)
     inertia, gravity = _inertia_and_gravity(machine, points[0])
     w = BANDWIDTH
@@ -91,11 +104,7 @@ def scene_text(machine, mjcf: Path, out: Path, minutes: float) -> str:
         mjcf_text = str(Path(mjcf).resolve())
     lines = [
         f"# written by {WRITER}",
-        f"# A calibration test of {machine.name} ({Path(mjcf).name}): {minutes:g} minutes during a stop, the wheel",
-        "# not digging. Each axis moves rest to rest both ways at 30, 60 and 95 % of its rated speed, holding 5 s",
-        "# after each move; the slew and the luff swing about several angles. Run it on the machine and log, at",
-        "# 1 to 1,000 Hz, each axis's encoder, drive torque (or current) and speed feedback; then",
-        "# python -m bwr_twin.calibrate fit LOG --model MJCF --out DIR. Units: SI (m, rad, s, N, N m).",
+        *header,
         "",
         "[machine]",
         f'mjcf = "{mjcf_text}"',
