@@ -6,6 +6,7 @@ run by the twin, and the nominal model calibrated back from its log."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -132,3 +133,127 @@ def test_a_parameter_the_log_cannot_determine_is_named_and_left_alone(tmp_path, 
     assert "slew_frictionloss" in printed and "not determined by these logs" in printed
     text = (out / "calibrated.xml").read_text()
     assert '<joint name="slew" class="slew"/>\n' in text  # the slew's line as written
+
+
+# -- a historian's CSV, and bad input ------------------------------------------------------------
+
+FRICTION = [4.0e4, 2.0e5, 8.0e5]
+COLUMN_MAP = """\
+[time]
+column = "stamp"
+unit = "ms"
+[signals]
+travel_position = { column = "TRV_POS", unit = "mm" }
+slew_position = { column = "SLW_POS", unit = "deg" }
+luff_position = { column = "LUF_POS", unit = "deg", offset = 0.5 }
+travel_force = { column = "TRV_F", unit = "kN" }
+slew_torque = { column = "SLW_T", unit = "kN m", scale = 2.0 }
+luff_current = { column = "LUF_I", unit = "A", torque_constant = 5.0e4 }
+"""
+
+
+@pytest.fixture(scope="module")
+def friction_log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("friction")
+    return twin_log(folder, HEAVY, plant=f"frictionloss = [{', '.join(map(str, FRICTION))}]")
+
+
+def historian_csv(log: Path, folder: Path, *, rows=None) -> tuple[Path, Path]:
+    """The run's log as a historian writes one: other names and units, time in ms with 3 ms of
+    jitter, a 2 s gap; `rows` edits the text rows. Returns (csv, column map)."""
+    machine = Machine(HEAVY)
+    series = read_log(log, machine)
+    rng = np.random.default_rng(3)
+    keep = ~((series.time > 40.0) & (series.time < 42.0))  # a gap shorter than a window
+    t = series.time[keep] * 1000 + rng.uniform(-3, 3, keep.sum())
+    q, f = series.q[keep], series.force[keep]
+    lines = ["stamp,TRV_POS,SLW_POS,LUF_POS,TRV_F,SLW_T,LUF_I"]
+    for i in range(len(t)):
+        lines.append(f"{t[i]:.3f},{q[i, 0] * 1000:.6f},{np.degrees(q[i, 1]):.8f},{np.degrees(q[i, 2]) - 0.5:.8f},"
+                     f"{f[i, 0] / 1e3:.6f},{f[i, 1] / 2e3:.6f},{f[i, 2] / 5e4:.6f}")
+    if rows is not None:
+        lines = rows(lines)
+    csv, mapping = folder / "historian.csv", folder / "columns.toml"
+    csv.write_text("\n".join(lines) + "\n")
+    mapping.write_text(COLUMN_MAP)
+    return csv, mapping
+
+
+def test_a_historian_csv_with_jitter_and_a_gap_fits_as_the_run_does(friction_log, tmp_path):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    out = tmp_path / "calibration"
+    names = ["travel_frictionloss", "slew_frictionloss", "luff_frictionloss"]
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out),
+                      "--params", *names]) == 0
+    summary = json.loads((out / "calibration.json").read_text())
+    # Without speed feedback each window starts from a speed taken off the quantised encoders: 10 %.
+    for name, value in zip(names, FRICTION, strict=True):
+        assert summary["parameters"][name]["fitted"] == pytest.approx(value, rel=0.1), name
+
+
+def _bad_rows(kind):
+    def backwards(lines):
+        lines[20], lines[21] = lines[21], lines[20]
+        return lines
+
+    def nan(lines):
+        fields = lines[30].split(",")
+        fields[2] = "nan"
+        lines[30] = ",".join(fields)
+        return lines
+
+    def gap(lines):
+        return lines[:100] + lines[200:]  # 10 s missing: longer than a 5 s window
+
+    return {"backwards": backwards, "nan": nan, "gap": gap}[kind]
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("backwards", r"historian.csv: row 21: time .* does not come after"),
+    ("nan", r"historian.csv: row 30, column 'SLW_POS': nan \(not a finite number\)"),
+    ("gap", r"historian.csv: row 100: a gap of 10.* longer than a window of 5 s"),
+])
+def test_a_bad_historian_log_is_one_line_and_nothing_is_written(friction_log, tmp_path, capsys, kind, message):
+    csv, mapping = historian_csv(friction_log, tmp_path, rows=_bad_rows(kind))
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists() and not list(tmp_path.glob(".calibration*"))
+
+
+@pytest.mark.parametrize("change, message", [
+    (("csv", "LUF_I", "LUF_CURRENT"), r"historian.csv: no column 'LUF_I' \(.*columns.toml: luff_current\)"),
+    (("map", 'unit = "kN m"', 'unit = "kN"'), r"columns.toml: signals.slew_force: unit 'kN'; give one of N m, kN m"),
+    (("map", 'unit = "ms"', 'unit = "h"'), r"columns.toml: time.unit 'h'"),
+])
+def test_columns_or_units_that_do_not_fit_are_named(friction_log, tmp_path, capsys, change, message):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    where, old, new = change
+    target = csv if where == "csv" else mapping
+    target.write_text(target.read_text().replace(old, new, 1))
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists()
+
+
+def test_bounds_outside_physics_a_machine_outside_the_contract_and_another_machine_are_refused(
+        friction_log, tmp_path, capsys):
+    out = tmp_path / "calibration"
+    base = ["fit", str(friction_log), "--out", str(out)]
+    assert calibrate([*base, "--model", str(HEAVY), "--params", "slew_damping=-1e6:1e8"]) == 2
+    assert "'slew_damping=-1e6:1e8': outside what physics and the MJCF's ratings allow, 0 to" in capsys.readouterr().err
+    broken = tmp_path / "broken.xml"
+    broken.write_text(HEAVY.read_text().replace('<joint name="slew"', '<joint name="swing"'))
+    assert calibrate([*base, "--model", str(broken)]) == 2
+    assert str(broken) in capsys.readouterr().err
+    # The log replayed into a machine of another build: the same file with the boom's counterweight
+    # a tenth of its mass. The residual is far beyond the noise: refused, nothing written.
+    other = tmp_path / "other.xml"
+    other.write_text(edit(HEAVY.read_text(), [("body", "boom_counterweight", "mass", 0, "3.3e4", "")]))
+    assert calibrate([*base, "--model", str(other), "--params", "luff_damping"]) == 2
+    err = capsys.readouterr().err
+    assert "not a log of" in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()

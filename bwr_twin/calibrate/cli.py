@@ -77,6 +77,7 @@ def _fit(args: argparse.Namespace) -> int:
           f"{len(logs)} log(s); at most {needed} rollouts of {per:.2f} s each, {per * needed:.0f} s")
     with _progress(needed) as progress:
         result = fit(problem, iterations=args.iterations, progress=progress)
+    _check_same_machine(args.logs[0], args.model, result, problem.motion_rms())
     prediction = _holdout(machine, knobs, holdout, result) if holdout is not None else None
     text = _calibrated_xml(args.model, args.logs, result)
     with staged_directory(args.out, overwrite=args.overwrite, kind="calibration") as staging:
@@ -89,6 +90,19 @@ def _fit(args: argparse.Namespace) -> int:
     _print(result, prediction)
     print(f"results in {args.out}/")
     return 0
+
+
+MAX_UNEXPLAINED = 0.5  # of a log's motion that the calibrated model may leave unexplained
+
+
+def _check_same_machine(log: Path, model: Path, result, motion: np.ndarray) -> None:
+    """Refuse a fit that leaves more than MAX_UNEXPLAINED of an axis's measured motion unexplained:
+    a residual far beyond any noise is a log of another machine, or of signals mapped wrong."""
+    for column, left, moved in zip(result.columns, result.rms_after, motion, strict=True):
+        if "position" in column and moved > 0 and left > MAX_UNEXPLAINED * moved:
+            raise BwrError(f"{log}: the {column} residual after the fit, {left:.4g} {_unit(column)} RMS, is "
+                           f"{left / moved:.0%} of the motion logged ({moved:.4g}): not a log of {model} "
+                           "(another machine, or columns mapped wrong); nothing written")
 
 
 class _progress:

@@ -29,14 +29,20 @@ class MachineLog:
         """The median sample rate in Hz."""
         return float(1.0 / np.median(np.diff(self.time)))
 
-    def velocity(self) -> np.ndarray:
-        """The speed feedback, or the encoders differentiated where there is none (m/s, rad/s)."""
+    def velocity_at(self, row: int) -> np.ndarray:
+        """The (3,) speed at `row`: the speed feedback, or where there is none the slope of a
+        quadratic through the encoders within VELOCITY_SPAN (a difference of two quantised
+        readings 0.1 s apart would be off by more than the slew's rated speed)."""
         if self.qd is not None:
-            return self.qd
-        return np.gradient(self.q, self.time, axis=0)
+            return self.qd[row]
+        near = np.flatnonzero(np.abs(self.time - self.time[row]) <= VELOCITY_SPAN / 2)
+        if len(near) < 3:
+            return (self.q[near[-1]] - self.q[near[0]]) / max(self.time[near[-1]] - self.time[near[0]], 1e-12)
+        return np.polyfit(self.time[near] - self.time[row], self.q[near], 2)[1]
 
 
 MIN_RATE, MAX_RATE = 1.0, 1000.0  # Hz: the rates a log may have
+VELOCITY_SPAN = 2.0  # s of encoder readings a speed is taken from where the log has no speed feedback
 
 
 def read_log(path: str | Path, machine: Machine, column_map: Path | None = None) -> MachineLog:

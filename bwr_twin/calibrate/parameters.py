@@ -83,15 +83,34 @@ def catalogue(machine: Machine, names: Sequence[str] | None) -> list[Knob]:
     if not names:
         names = [f"{axis}_{kind}" for axis in AXES for kind in DEFAULT_KINDS]
     knobs = []
-    for name in names:
+    for given in names:
+        name, _, bounds = given.partition("=")
         element, _, kind = name.rpartition("_")
         if not element or kind not in JOINT_KINDS + BODY_KINDS + SIGNAL_KINDS:
             raise BwrError(f"--params: '{name}' is not a parameter; give AXIS_KIND ({', '.join(JOINT_KINDS + SIGNAL_KINDS)}) "
                            f"or BODY_KIND ({', '.join(BODY_KINDS)}), e.g. slew_damping or boom_counterweight_mass")
-        knobs.append(_knob(machine, name, element, kind))
+        knob = _knob(machine, name, element, kind)
+        knobs.append(_bounded(knob, bounds) if bounds else knob)
     if len({k.name for k in knobs}) != len(knobs):
         raise BwrError("--params: a parameter is named twice")
     return knobs
+
+
+def _bounded(knob: Knob, text: str) -> Knob:
+    """The knob with the engineer's bounds `LOW:HIGH`, which must lie within physics' (its own)."""
+    try:
+        low, high = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise BwrError(f"--params: '{knob.name}={text}': bounds are LOW:HIGH, two numbers") from None
+    if not (np.isfinite(low) and np.isfinite(high) and low < high):
+        raise BwrError(f"--params: '{knob.name}={text}': bounds need LOW < HIGH, both finite")
+    if low < knob.low or high > knob.high:
+        raise BwrError(f"--params: '{knob.name}={text}': outside what physics and the MJCF's ratings allow, "
+                       f"{knob.low:.6g} to {knob.high:.6g} {knob.unit}")
+    if not low <= knob.nominal <= high:
+        raise BwrError(f"--params: '{knob.name}={text}': the MJCF's value {knob.nominal:.6g} {knob.unit} lies "
+                       "outside them; the fit starts from it")
+    return Knob(knob.name, knob.kind, knob.element, knob.axis, knob.nominal, low, high, knob.unit)
 
 
 def _knob(machine: Machine, name: str, element: str, kind: str) -> Knob:

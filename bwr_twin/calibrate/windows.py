@@ -13,8 +13,9 @@ GAP_FACTOR = 3.0  # a step longer than this many median steps is a gap (jitter i
 
 
 def cut(log: MachineLog, length: float) -> list[tuple[int, int]]:
-    """(first, last) row indices of each window of `length` s (the last rows, if shorter than half
-    a window, are left out). Raises BwrError naming the row of a gap longer than `length`."""
+    """(first, last) row indices of each window: from a sample to the first sample at least
+    `length` s later, within a stretch without a gap (what is left at a stretch's end, shorter
+    than a window, is left out). Raises BwrError naming the row of a gap longer than `length`."""
     steps = np.diff(log.time)
     if length <= 0:
         raise BwrError(f"--window: {length:g} s; a window lasts longer than 0 s")
@@ -25,14 +26,14 @@ def cut(log: MachineLog, length: float) -> list[tuple[int, int]]:
     gaps = np.flatnonzero(steps > GAP_FACTOR * np.median(steps)) + 1
     windows = []
     for first, stop in zip(np.r_[0, gaps], np.r_[gaps, len(log.time)]):
-        start = first
-        while start < stop - 1:
-            end = int(np.searchsorted(log.time, log.time[start] + length, side="right")) - 1
-            end = min(end, stop - 1)
-            if log.time[end] - log.time[start] >= 0.5 * length:
-                windows.append((int(start), end))
+        start = int(first)
+        while True:
+            end = int(np.searchsorted(log.time, log.time[start] + length - 1e-9, side="left"))
+            if end >= stop:
+                break
+            windows.append((start, end))
             start = end
     if not windows:
-        raise BwrError(f"{log.path}: {log.time[-1] - log.time[0]:g} s without a gap is shorter than half a "
-                       f"window of {length:g} s; give a shorter --window")
+        raise BwrError(f"{log.path}: no stretch without a gap lasts a window of {length:g} s; give a shorter "
+                       "--window")
     return windows
