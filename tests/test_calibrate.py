@@ -5,6 +5,7 @@ run by the twin, and the nominal model calibrated back from its log."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -189,6 +190,36 @@ def test_a_historian_csv_with_jitter_and_a_gap_fits_as_the_run_does(friction_log
     # Without speed feedback each window starts from a speed taken off the quantised encoders: 10 %.
     for name, value in zip(names, FRICTION, strict=True):
         assert summary["parameters"][name]["fitted"] == pytest.approx(value, rel=0.1), name
+
+
+@pytest.fixture(scope="module")
+def plain_log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plain")
+    return twin_log(folder, HEAVY)
+
+
+def test_a_drive_lag_and_an_encoder_offset_are_recovered(plain_log):
+    machine = Machine(HEAVY)
+    log = read_log(plain_log, machine)
+    lag, offset = 0.3, np.radians(0.2)  # s; rad on the luff's encoder
+    late = np.column_stack([np.interp(log.time + lag, log.time, log.force[:, j]) for j in range(3)])
+    log = dataclasses.replace(log, force=late, q=log.q + [0.0, 0.0, offset])
+    result = fit(Problem(machine, catalogue(machine, ["travel_lag", "slew_lag", "luff_offset"]), [log]))
+    # At 10 Hz a lag comes within a sample. An offset shows only through the forces that change
+    # with the pose (each window starts from the encoders), the luff's gravity here: within 30 %.
+    assert estimate(result, "travel_lag").fitted == pytest.approx(lag, abs=0.1)
+    assert estimate(result, "slew_lag").fitted == pytest.approx(lag, abs=0.1)
+    assert estimate(result, "luff_offset").fitted == pytest.approx(offset, rel=0.3)
+
+
+def test_a_mass_position_along_the_boom_is_recovered(tmp_path):
+    text = HEAVY.read_text().replace('<body name="boom_counterweight" pos="-25 0 4">',
+                                     '<body name="boom_counterweight" pos="-26.5 0 4">')
+    mjcf = tmp_path / "variant.xml"
+    mjcf.write_text(text)
+    result = fitted(twin_log(tmp_path, mjcf), ["boom_counterweight_x"])
+    e = estimate(result, "boom_counterweight_x")
+    assert e.identifiable and e.fitted == pytest.approx(-26.5, abs=0.3), e
 
 
 def _bad_rows(kind):
