@@ -126,10 +126,12 @@ class Problem:
 
     # -- the residual ---------------------------------------------------------------------------
 
-    def residual_fn(self) -> Callable:
-        """sysid's model residual over all windows at once: the model compiled once per
-        parameter vector, the windows rolled out in one batch on THREADS threads."""
+    def residual_fn(self, windows: Sequence[int] | None = None) -> Callable:
+        """sysid's model residual over all windows (or those indexed) at once: the model compiled
+        once per parameter vector, the windows rolled out in one batch on THREADS threads."""
         trajectories = self.sequences.measured_rollout
+        if windows is not None:
+            trajectories = [trajectories[i] for i in windows]
 
         def residual(x, params, **_):
             res, predicted, measured = sysid.model_residual(
