@@ -48,6 +48,7 @@ def twin_log(folder: Path, mjcf: Path, moves=MOVES, plant: str = "") -> Path:
     machine = Machine(mjcf)
     times = np.array([t for t, _ in moves])
     points = np.array([q for _, q in moves])
+    folder.mkdir(parents=True, exist_ok=True)
     scene = folder / "test.toml"
     text = scene_for(machine, mjcf, scene, times, points, ["# a test motion"])
     scene.write_text(text + (f"\n[plant]\n{plant}\n" if plant else ""))
@@ -98,6 +99,10 @@ def test_coulomb_friction_is_recovered_and_written_into_the_mjcf(tmp_path):
         assert f"calibrated from {log}" in new
     calibrated = Machine(out / "calibrated.xml")
     np.testing.assert_allclose(calibrated.model.dof_frictionloss[:3], truth, rtol=0.05)
+    for name in ("report.html", "traces.png", "residuals.png", "parameters.png"):
+        assert (out / name).stat().st_size > 1000, name
+    # A calibrated machine is a machine like any other: the twin runs it.
+    assert (twin_log(tmp_path / "again", out / "calibrated.xml", TRAVEL_ONLY) / "timeseries.csv").is_file()
 
 
 def test_reflected_drive_inertia_is_recovered(tmp_path):

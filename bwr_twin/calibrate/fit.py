@@ -223,6 +223,7 @@ class Fit:
     problem: Problem = field(repr=False)
     result: object = field(repr=False)
     initial: sysid.ParameterDict = field(repr=False)
+    solved: tuple[str, ...] = ()  # the parameters the last solve changed (`result` is of them)
 
     def value(self, name: str) -> float:
         return next(e.fitted for e in self.estimates if e.knob.name == name)
@@ -261,7 +262,7 @@ def fit(problem: Problem, *, iterations: int = MAX_ITERATIONS, progress: Callabl
     for p in params.values():  # a start on a bound (no friction in the file) stalls: start inside
         p.move_off_bound(fraction=0.05)
     dropped: set[str] = set()
-    result = None
+    result, solved = None, ()
     estimates = [Estimate(k, k.nominal, float("nan"), (float("nan"), float("nan")), False) for k in problem.knobs]
     for _ in range(PASSES):
         free = params.copy()
@@ -270,6 +271,7 @@ def fit(problem: Problem, *, iterations: int = MAX_ITERATIONS, progress: Callabl
             free[name].frozen = True
         if free.size == 0:
             break
+        solved = tuple(k.name for k in problem.knobs if k.name not in dropped)
         with contextlib.redirect_stdout(io.StringIO()):  # the optimizer prints each iteration
             opt, result = sysid.optimize(free, counter, optimizer="mujoco", verbose=False, max_iters=iterations,
                                          eps=FD_STEP, x_scale="jac")
@@ -289,7 +291,7 @@ def fit(problem: Problem, *, iterations: int = MAX_ITERATIONS, progress: Callabl
     x = full.as_vector()
     rms_after = problem.column_rms(x)
     return Fit(estimates, rms_before, rms_after, problem.columns, clock.perf_counter() - started, counter.calls, x,
-               problem, result, problem.params)
+               problem, result, problem.params, solved)
 
 
 class _Counter:

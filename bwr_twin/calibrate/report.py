@@ -115,12 +115,14 @@ def _html(path: Path, problem, result, shown) -> None:
         res, predicted, measured = residual(x, params)
         return res, [[p] for p in predicted], [[m] for m in measured]
 
-    fitted = problem.params.copy()
+    fitted, initial = problem.params.copy(), result.initial.copy()
     for e in result.estimates:
         fitted[e.knob.name].value[:] = e.fitted
+        if e.knob.name not in result.solved:  # sysid's sections read the last solve's Jacobian
+            fitted[e.knob.name].frozen = initial[e.knob.name].frozen = True
     sequences = problem.sequences[shown[0]:shown[0] + 1] if len(shown) == 1 else _subset(problem.sequences, shown)
     with contextlib.redirect_stdout(io.StringIO()):
-        builder = sysid.default_report([sequences], result.initial, fitted, per_sequence, result.result,
+        builder = sysid.default_report([sequences], initial, fitted, per_sequence, result.result,
                                        title=f"Calibration of {problem.machine.name}", generate_videos=False)
     builder.save(str(path))
 
