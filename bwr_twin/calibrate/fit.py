@@ -26,7 +26,6 @@ from mujoco.minimize import jacobian_fd
 from bwr_twin.calibrate.log import MachineLog
 from bwr_twin.calibrate.parameters import Knob
 from bwr_twin.calibrate.windows import cut
-from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.model.spec import Edits, edited_spec
 
@@ -229,12 +228,6 @@ class Fit:
         return next(e.fitted for e in self.estimates if e.knob.name == name)
 
 
-def _hold(times: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """The logged values held from each sample to the next (a drive's setpoint is held), at `at`."""
-    index = np.clip(np.searchsorted(times, at + 1e-9, side="right") - 1, 0, len(times) - 1)
-    return values[index]
-
-
 def seconds_per_evaluation(problem: Problem) -> float:
     """One rollout of every window at the nominal parameters, timed (s)."""
     started = clock.perf_counter()
@@ -275,7 +268,7 @@ def fit(problem: Problem, *, iterations: int = MAX_ITERATIONS, progress: Callabl
         with contextlib.redirect_stdout(io.StringIO()):  # the optimizer prints each iteration
             opt, result = sysid.optimize(free, counter, optimizer="mujoco", verbose=False, max_iters=iterations,
                                          eps=FD_STEP, x_scale="jac")
-        problem.scales = _rescale(problem, counter, opt)
+        problem.scales = _rescale(problem, opt)
         estimates = _intervals(problem, counter, opt, dropped)
         newly = {e.knob.name for e in estimates if not e.identifiable} - dropped
         if not newly:
@@ -307,7 +300,7 @@ class _Counter:
         return self.residual_fn(x, params, **kwargs)
 
 
-def _rescale(problem: Problem, residual_fn: Callable, params: sysid.ParameterDict) -> np.ndarray:
+def _rescale(problem: Problem, params: sysid.ParameterDict) -> np.ndarray:
     """Each column's scale set to its RMS residual at `params`: the weights of noise left."""
     rms = problem.column_rms(params.as_vector(include_frozen=True))
     return np.where(rms > 0, rms, 1.0)

@@ -14,7 +14,7 @@ _ATTRIBUTE = r'(\s{name}\s*=\s*)(["\'])(.*?)\2'
 
 def _tag(text: str, kind: str, name: str) -> re.Match:
     """The start tag `<kind ... name="name" ...>`; BwrError if the file lacks it."""
-    pattern = re.compile(rf'<{kind}\b[^>]*?\sname\s*=\s*(["\']){re.escape(name)}\1[^>]*?/?>', re.S)
+    pattern = re.compile(rf'<{kind}\b[^>]*?\sname\s*=\s*(["\']){re.escape(name)}\1[^>]*?/?>', re.DOTALL)
     found = pattern.search(text)
     if found is None:
         raise BwrError(f"the MJCF has no <{kind} name=\"{name}\"> to write a fitted value into")
@@ -23,7 +23,7 @@ def _tag(text: str, kind: str, name: str) -> re.Match:
 
 def _inertial_after(text: str, body: re.Match, name: str) -> re.Match:
     """The `<inertial>` of the body whose start tag is `body`: the first before any child body."""
-    found = re.compile(r"<(inertial|body)\b[^>]*?/?>", re.S).search(text, body.end())
+    found = re.compile(r"<(inertial|body)\b[^>]*?/?>", re.DOTALL).search(text, body.end())
     if found is None or found.group(1) != "inertial":
         raise BwrError(f"the body '{name}' has no <inertial> of its own to write a fitted mass into")
     return found

@@ -119,7 +119,7 @@ def _knob(machine: Machine, name: str, element: str, kind: str) -> Knob:
         if element not in AXES:
             raise BwrError(f"--params: '{name}': '{element}' is not an axis ({', '.join(AXES)})")
         axis = AXES.index(element)
-        joint, dof = machine.joint_ids[axis], model.jnt_dofadr[machine.joint_ids[axis]]
+        dof = model.jnt_dofadr[machine.joint_ids[axis]]
         rating = float(np.max(np.abs(machine.drive_limits[axis])))
         unit = UNITS[kind][axis]
         if kind == "damping":  # at most all the drive's rating spent at its rated speed
