@@ -293,3 +293,34 @@ def test_bounds_outside_physics_a_machine_outside_the_contract_and_another_machi
     err = capsys.readouterr().err
     assert "not a log of" in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_a_planned_test_stays_within_the_envelope_and_ratings_and_predicts_its_errors(tmp_path, capsys):
+    from bwr_twin.calibrate.plan import test_motion
+    from bwr_twin.config.scene import load_scene
+
+    out = tmp_path / "test.toml"
+    assert calibrate(["plan", str(HEAVY), "--out", str(out), "--minutes", "2"]) == 0
+    printed = capsys.readouterr().out
+    for name in ("travel_damping", "travel_frictionloss", "slew_armature", "luff_damping"):
+        assert re.search(rf"{name} +nominal .* expected standard error ([0-9.e+-]+|inf) ", printed), printed
+    # Two minutes move only the travel: its friction is determined, the slew's is named as not.
+    assert re.search(r"travel_frictionloss +nominal +0 N +expected standard error [0-9.e+]+ N\n", printed), printed
+    assert re.search(r"slew_frictionloss .*: not determined by this test", printed), printed
+    assert out.read_text().startswith("# written by bwr_twin.calibrate\n")
+    assert load_scene(out).path == out
+    machine = Machine(HEAVY)
+    times, points = test_motion(machine, 10.0)
+    assert times[-1] >= 600.0
+    assert ((points >= machine.envelope[:, 0]) & (points <= machine.envelope[:, 1])).all()
+    peak = 1.5 * np.abs(np.diff(points, axis=0)) / np.diff(times)[:, None]  # a cubic from rest to rest
+    assert (peak <= machine.rated_speed * (1 + 1e-9)).all()
+    for axis in range(3):  # both ways, at several speeds, on every axis
+        moves = np.diff(points[:, axis])
+        assert (moves > 0).any() and (moves < 0).any()
+        assert len(np.unique(np.round(peak[:, axis][peak[:, axis] > 0], 6))) >= 3
+    # A file the twin did not write is left alone.
+    mine = tmp_path / "mine.toml"
+    mine.write_text("# my notes\n")
+    assert calibrate(["plan", str(HEAVY), "--out", str(mine)]) == 2
+    assert "was not written by the twin" in capsys.readouterr().err and mine.read_text() == "# my notes\n"

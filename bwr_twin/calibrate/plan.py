@@ -60,7 +60,8 @@ def test_motion(machine, minutes: float) -> tuple[np.ndarray, np.ndarray]:
                     target = q.copy()
                     target[axis] = np.clip(middle + sign * distance / 2, centre[axis] - 2 * half[axis],
                                            centre[axis] + 2 * half[axis])
-                    t += duration
+                    # A move to another pose is longer: it too peaks at this share of the rated speed.
+                    t += max(duration, 1.5 * abs(target[axis] - q[axis]) / (share * rated[axis]))
                     times.append(t)
                     points.append(target.copy())
                     t += HOLD
