@@ -15,10 +15,10 @@ import pytest
 
 from bwr_twin.calibrate.cli import main as calibrate
 from bwr_twin.calibrate.fit import Problem, fit
-from bwr_twin.calibrate.log import read_log
 from bwr_twin.calibrate.mjcf_edit import edit
 from bwr_twin.calibrate.parameters import catalogue
 from bwr_twin.calibrate.plan import scene_for
+from bwr_twin.calibrate.reading import read_log
 from bwr_twin.model.machine import Machine
 from bwr_twin.run import main as run
 

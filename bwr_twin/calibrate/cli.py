@@ -54,8 +54,8 @@ def _plan(args: argparse.Namespace) -> int:
 
 def _fit(args: argparse.Namespace) -> int:
     from bwr_twin.calibrate.fit import Problem, evaluations_needed, fit, seconds_per_evaluation
-    from bwr_twin.calibrate.log import read_log
     from bwr_twin.calibrate.parameters import catalogue
+    from bwr_twin.calibrate.reading import read_log
     from bwr_twin.model.machine import Machine
     from bwr_twin.ownership import check_output
     from bwr_twin.results.rundir import staged_directory

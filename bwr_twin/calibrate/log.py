@@ -1,6 +1,6 @@
 """A machine's log, as the fit reads it: per axis the encoder position, the drive's force and,
-where recorded, the speed feedback; the wind speed where recorded. From a run directory the twin
-wrote (its timeseries.csv) or a plant historian's CSV with a column map (`historian`)."""
+where recorded, the speed feedback; the wind speed where recorded; and the checks every log meets.
+`bwr_twin.calibrate.reading` reads one from a run directory or a historian's CSV."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bwr_twin.errors import BwrError
-from bwr_twin.model.machine import AXES, Machine
+from bwr_twin.model.machine import AXES
 
 
 @dataclass(frozen=True)
@@ -43,36 +43,6 @@ class MachineLog:
 
 MIN_RATE, MAX_RATE = 1.0, 1000.0  # Hz: the rates a log may have
 VELOCITY_SPAN = 2.0  # s of encoder readings a speed is taken from where the log has no speed feedback
-
-
-def read_log(path: str | Path, machine: Machine, column_map: Path | None = None) -> MachineLog:
-    """The log at `path`: a run directory the twin wrote, or a historian's CSV read through
-    `column_map` (a TOML file). Checked: rate, time, finiteness; a problem is one BwrError naming
-    the file, the column and the row."""
-    path = Path(path)
-    if path.is_dir():
-        log = _run_directory(path, machine)
-    elif column_map is not None:
-        from bwr_twin.calibrate.historian import read_historian
-
-        log = read_historian(path, column_map, machine)
-    else:
-        raise BwrError(f"{path}: not a run directory the twin wrote; a historian's CSV needs --columns MAP.toml")
-    check_log(log)
-    return log
-
-
-def _run_directory(path: Path, machine: Machine) -> MachineLog:
-    from bwr_twin.results.run_files import read_timeseries
-
-    csv = path / "timeseries.csv"
-    if not csv.is_file():
-        raise BwrError(f"{path}: holds no timeseries.csv; a log is a run directory the twin wrote or a "
-                       "historian's CSV with --columns")
-    series = read_timeseries(csv, envelope=machine.envelope)
-    signals = series.signals
-    return MachineLog(path=path, time=series.time, q=signals["q_measured"], force=signals["drive_force"],
-                      qd=signals["qd_measured"], wind=series.wind_speed)
 
 
 def check_log(log: MachineLog) -> None:
