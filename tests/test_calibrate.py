@@ -281,6 +281,9 @@ def test_bounds_outside_physics_a_machine_outside_the_contract_and_another_machi
     base = ["fit", str(friction_log), "--out", str(out)]
     assert calibrate([*base, "--model", str(HEAVY), "--params", "slew_damping=-1e6:1e8"]) == 2
     assert "'slew_damping=-1e6:1e8': outside what physics and the MJCF's ratings allow, 0 to" in capsys.readouterr().err
+    # Work beyond an hour is refused up front, with its estimate.
+    assert calibrate([*base, "--model", str(HEAVY), "--iterations", "10000000"]) == 2
+    assert re.search(r"would take up to [0-9.]+ h \(\d+ rollouts of", capsys.readouterr().err)
     broken = tmp_path / "broken.xml"
     broken.write_text(HEAVY.read_text().replace('<joint name="slew"', '<joint name="swing"'))
     assert calibrate([*base, "--model", str(broken)]) == 2
