@@ -23,8 +23,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("sim",),  # the plant, encoders and drives, the lockstep loop, one run advanced a period at a time
     ("results",),  # run directories, summaries and figures
     ("run",),  # one scene simulated from the command line
-    # the front ends: sweeps, comparison of runs, FMU and PLC export, gym, replay, the OPC UA server, the shadow
-    ("batch", "compare", "gym", "replay", "serve", "shadow"),
+    # the front ends: sweeps, comparison of runs, gym, replay, the OPC UA server, the shadow,
+    # calibration from a machine's logs
+    ("batch", "compare", "gym", "replay", "serve", "shadow", "calibrate"),
     ("export",),  # FMU, PLC and the Asset Administration Shell, which packs them with what serve serves
     ("tune",),  # gain tuning over batches
     ("bwr_twin",),  # the package itself: what `import bwr_twin` gives

@@ -86,6 +86,9 @@ class Edits:
             size and multisampling, and a sky where the file has none; None keeps the file's.
         neighbour: a second machine's MJCF, attached to the world with every name prefixed
             NEIGHBOUR: one model holds both machines, the first's joints and actuators first.
+        joint_sensors: a jointpos sensor on each joint named here, `<joint>_pos`, and a
+            jointvel sensor on each named in `velocity_sensors`, `<joint>_vel`: what a
+            calibration compares with a machine's encoders and speed feedback.
     """
 
     payloads: Sequence[Payload] = ()
@@ -97,6 +100,8 @@ class Edits:
     rigid_body_only: bool = False
     picture: Picture | None = None
     neighbour: Path | None = None
+    joint_sensors: Sequence[str] = ()
+    velocity_sensors: Sequence[str] = ()
 
 
 NEIGHBOUR = "neighbour/"  # the prefix of every name of an attached second machine
@@ -116,6 +121,17 @@ _RIGID_BODY_ONLY = (
 
 def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
     """Compile the MJCF file at `path` with `edits`. Raises ModelError naming the file."""
+    spec = edited_spec(path, edits)
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise _compile_error(path, exc) from None
+
+
+def edited_spec(path: Path, edits: Edits = Edits()) -> mujoco.MjSpec:
+    """The MJCF file at `path` parsed, with `edits` made, not yet compiled: for a caller that
+    changes fields of it before each compile (a calibration's parameters, `set_field`). Raises
+    ModelError naming the file."""
     if not path.is_file():
         raise ModelError(f"{path}: MJCF file not found")
     try:
@@ -145,10 +161,30 @@ def compile_model(path: Path, edits: Edits = Edits()) -> mujoco.MjModel:
             for geom in list(spec.geoms):
                 if geom.contype == 0 and geom.conaffinity == 0 and geom.fluid_ellipsoid == 0:
                     spec.delete(geom)
-        return spec.compile()
+        for joint in edits.joint_sensors:
+            spec.add_sensor(name=f"{joint}_pos", type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+                            objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=joint)
+        for joint in edits.velocity_sensors:
+            spec.add_sensor(name=f"{joint}_vel", type=mujoco.mjtSensor.mjSENS_JOINTVEL,
+                            objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=joint)
+        return spec
     except ValueError as exc:
-        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
-        raise ModelError(f"{path}: MuJoCo cannot compile it: {first_line}") from None
+        raise _compile_error(path, exc) from None
+
+
+def _compile_error(path: Path, exc: ValueError) -> ModelError:
+    first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "compile error"
+    return ModelError(f"{path}: MuJoCo cannot compile it: {first_line}")
+
+
+def set_field(spec: mujoco.MjSpec, kind: str, name: str, field: str, value: float | Sequence[float]) -> None:
+    """Set one field of one element of `spec` before it is compiled: `kind` "joint" or "body",
+    `field` an MjSpec attribute ("damping", "frictionloss", "armature"; "mass", "pos").
+    Raises ModelError if the element is missing."""
+    element = spec.joint(name) if kind == "joint" else spec.body(name)
+    if element is None:
+        raise ModelError(f"the model has no {kind} named '{name}'")
+    setattr(element, field, value)
 
 
 _WARNED: set[tuple[str, str]] = set()  # (file, MuJoCo's warning) already printed by this process

@@ -1,0 +1,329 @@
+"""Calibration (bwr_twin.calibrate) with the real mujoco.sysid on logs the twin writes: the heavy
+machine with numbers the fit does not know (a variant of mjcf/bwr_heavy.xml written through the
+same in-place editing the calibration uses, or the scene's plant friction), a short test motion
+run by the twin, and the nominal model calibrated back from its log."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bwr_twin.calibrate.cli import main as calibrate
+from bwr_twin.calibrate.fit import Problem, fit
+from bwr_twin.calibrate.mjcf_edit import edit
+from bwr_twin.calibrate.parameters import catalogue
+from bwr_twin.calibrate.plan import scene_for
+from bwr_twin.calibrate.reading import read_log
+from bwr_twin.model.machine import Machine
+from bwr_twin.run import main as run
+
+HEAVY = Path(__file__).resolve().parent.parent / "mjcf" / "bwr_heavy.xml"
+
+# Joint values (travel m, slew rad, luff rad) at times (s): each axis both ways at two speeds,
+# the luff at several angles; 90 s.
+MOVES = [(0.0, (0.0, 0.0, 0.0)), (15.0, (3.0, 0.08, 0.02)), (20.0, (3.0, 0.08, 0.02)),
+         (35.0, (0.5, -0.02, -0.01)), (40.0, (0.5, -0.02, -0.01)), (50.0, (2.0, 0.04, 0.01)),
+         (55.0, (2.0, 0.04, 0.01)), (75.0, (-1.0, -0.05, 0.04)), (90.0, (-1.0, -0.05, 0.04))]
+TRAVEL_ONLY = [(0.0, (0.0, 0.0, 0.0)), (15.0, (3.0, 0.0, 0.0)), (20.0, (3.0, 0.0, 0.0)),
+               (35.0, (0.0, 0.0, 0.0)), (40.0, (0.0, 0.0, 0.0)), (50.0, (2.0, 0.0, 0.0)),
+               (60.0, (2.0, 0.0, 0.0))]
+
+
+def variant(folder: Path, changes: list[tuple[str, str, str, int, str, str]]) -> Path:
+    """folder/variant.xml: the heavy machine with `changes` made (mjcf_edit.edit's form)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "variant.xml"
+    path.write_text(edit(HEAVY.read_text(), changes))
+    return path
+
+
+def twin_log(folder: Path, mjcf: Path, moves=MOVES, plant: str = "") -> Path:
+    """The run directory of the twin moving the machine of `mjcf` through `moves`, `plant` a
+    [plant] table's lines."""
+    machine = Machine(mjcf)
+    times = np.array([t for t, _ in moves])
+    points = np.array([q for _, q in moves])
+    folder.mkdir(parents=True, exist_ok=True)
+    scene = folder / "test.toml"
+    text = scene_for(machine, mjcf, scene, times, points, ["# a test motion"])
+    scene.write_text(text + (f"\n[plant]\n{plant}\n" if plant else ""))
+    assert run([str(scene), "--out", str(folder / "log"), "--no-plots"]) == 0
+    return folder / "log"
+
+
+def fitted(log: Path, names: list[str], **options):
+    machine = Machine(HEAVY)
+    return fit(Problem(machine, catalogue(machine, names), [read_log(log, machine)], **options))
+
+
+def estimate(result, name):
+    return next(e for e in result.estimates if e.knob.name == name)
+
+
+def test_viscous_damping_is_recovered(tmp_path):
+    mjcf = variant(tmp_path, [("joint", "travel", "damping", 0, "7.0e4", "30 % more"),
+                              ("joint", "slew", "damping", 0, "5.0e7", "23 % less")])
+    result = fitted(twin_log(tmp_path, mjcf), ["travel_damping", "slew_damping"])
+    for name, truth in (("travel_damping", 7.0e4), ("slew_damping", 5.0e7)):
+        e = estimate(result, name)
+        assert e.identifiable and e.fitted == pytest.approx(truth, rel=0.05), (name, e)
+    fitted_axes = [0, 1, 3, 4]  # the travel's and the slew's positions and speeds
+    assert (result.rms_after[fitted_axes] < result.rms_before[fitted_axes]).all()
+
+
+def test_coulomb_friction_is_recovered_and_written_into_the_mjcf(tmp_path):
+    truth = [4.0e4, 2.0e5, 8.0e5]
+    log = twin_log(tmp_path, HEAVY, plant=f"frictionloss = [{', '.join(map(str, truth))}]")
+    out = tmp_path / "calibration"
+    names = ["travel_frictionloss", "slew_frictionloss", "luff_frictionloss"]
+    assert calibrate(["fit", str(log), "--model", str(HEAVY), "--out", str(out), "--params", *names]) == 0
+    summary = json.loads((out / "calibration.json").read_text())
+    for name, value in zip(names, truth, strict=True):
+        entry = summary["parameters"][name]
+        assert entry["identifiable"] and entry["fitted"] == pytest.approx(value, rel=0.05), (name, entry)
+        assert entry["interval_95"][0] < entry["fitted"] < entry["interval_95"][1]
+    for column, rms in summary["residual_rms"].items():
+        assert rms["calibrated"] < rms["nominal"], column
+    # The engineer's file as written, but for the three joints: each gains its number and a comment.
+    before, after = HEAVY.read_text().splitlines(), (out / "calibrated.xml").read_text().splitlines()
+    assert len(before) == len(after)
+    changed = [(a, b) for a, b in zip(before, after, strict=True) if a != b]
+    assert len(changed) == 3
+    for (old, new), joint in zip(changed, ("travel", "slew", "luff"), strict=True):
+        assert f'name="{joint}"' in old and 'frictionloss="' in new and "frictionloss was 0 N" in new
+        assert f"calibrated from {log}" in new
+    calibrated = Machine(out / "calibrated.xml")
+    np.testing.assert_allclose(calibrated.model.dof_frictionloss[:3], truth, rtol=0.05)
+    for name in ("report.html", "traces.png", "residuals.png", "parameters.png"):
+        assert (out / name).stat().st_size > 1000, name
+    # A calibrated machine is a machine like any other: the twin runs it.
+    assert (twin_log(tmp_path / "again", out / "calibrated.xml", TRAVEL_ONLY) / "timeseries.csv").is_file()
+
+
+def test_reflected_drive_inertia_is_recovered(tmp_path):
+    mjcf = variant(tmp_path, [("joint", "travel", "armature", 0, "4.0e5", "a third of the carriage"),
+                              ("joint", "slew", "armature", 0, "2.5e8", "a third of the slewing part")])
+    result = fitted(twin_log(tmp_path, mjcf), ["travel_armature", "slew_armature"])
+    own = {"travel_armature": 1.193e6, "slew_armature": 7.056e8}  # kg, kg m^2: the axes' own inertia at the start
+    for name, truth in (("travel_armature", 4.0e5), ("slew_armature", 2.5e8)):
+        e = estimate(result, name)
+        # The drive's share within 10 %, the axis's whole inertia (what moves it) within 2 %.
+        assert e.identifiable and e.fitted == pytest.approx(truth, rel=0.1), (name, e)
+        assert own[name] + e.fitted == pytest.approx(own[name] + truth, rel=0.02), (name, e)
+
+
+def test_counterweight_mass_is_recovered(tmp_path):
+    mjcf = variant(tmp_path, [("body", "boom_counterweight", "mass", 0, "3.6e5", "9 % heavier")])
+    result = fitted(twin_log(tmp_path, mjcf), ["boom_counterweight_mass"])
+    e = estimate(result, "boom_counterweight_mass")
+    assert e.identifiable and e.fitted == pytest.approx(3.6e5, rel=0.02), e
+
+
+def test_a_parameter_the_log_cannot_determine_is_named_and_left_alone(tmp_path, capsys):
+    log = twin_log(tmp_path, HEAVY, TRAVEL_ONLY, plant="frictionloss = [4.0e4, 2.0e5, 8.0e5]")
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(log), "--model", str(HEAVY), "--out", str(out), "--params",
+                      "travel_frictionloss", "slew_frictionloss"]) == 0
+    summary = json.loads((out / "calibration.json").read_text())
+    slew = summary["parameters"]["slew_frictionloss"]
+    assert not slew["identifiable"] and slew["left_at_nominal"] and slew["fitted"] == slew["nominal"] == 0.0
+    assert "slew" in slew["test_motion"]
+    travel = summary["parameters"]["travel_frictionloss"]
+    assert travel["identifiable"] and travel["fitted"] == pytest.approx(4.0e4, rel=0.05)
+    printed = capsys.readouterr().out
+    assert "slew_frictionloss" in printed and "not determined by these logs" in printed
+    text = (out / "calibrated.xml").read_text()
+    assert '<joint name="slew" class="slew"/>\n' in text  # the slew's line as written
+
+
+# -- a historian's CSV, and bad input ------------------------------------------------------------
+
+FRICTION = [4.0e4, 2.0e5, 8.0e5]
+COLUMN_MAP = """\
+[time]
+column = "stamp"
+unit = "ms"
+[signals]
+travel_position = { column = "TRV_POS", unit = "mm" }
+slew_position = { column = "SLW_POS", unit = "deg" }
+luff_position = { column = "LUF_POS", unit = "deg", offset = 0.5 }
+travel_force = { column = "TRV_F", unit = "kN" }
+slew_torque = { column = "SLW_T", unit = "kN m", scale = 2.0 }
+luff_current = { column = "LUF_I", unit = "A", torque_constant = 5.0e4 }
+"""
+
+
+@pytest.fixture(scope="module")
+def friction_log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("friction")
+    return twin_log(folder, HEAVY, plant=f"frictionloss = [{', '.join(map(str, FRICTION))}]")
+
+
+def historian_csv(log: Path, folder: Path, *, rows=None) -> tuple[Path, Path]:
+    """The run's log as a historian writes one: other names and units, time in ms with 3 ms of
+    jitter, a 2 s gap; `rows` edits the text rows. Returns (csv, column map)."""
+    machine = Machine(HEAVY)
+    series = read_log(log, machine)
+    rng = np.random.default_rng(3)
+    keep = ~((series.time > 40.0) & (series.time < 42.0))  # a gap shorter than a window
+    t = series.time[keep] * 1000 + rng.uniform(-3, 3, keep.sum())
+    q, f = series.q[keep], series.force[keep]
+    lines = ["stamp,TRV_POS,SLW_POS,LUF_POS,TRV_F,SLW_T,LUF_I"]
+    for i in range(len(t)):
+        lines.append(f"{t[i]:.3f},{q[i, 0] * 1000:.6f},{np.degrees(q[i, 1]):.8f},{np.degrees(q[i, 2]) - 0.5:.8f},"
+                     f"{f[i, 0] / 1e3:.6f},{f[i, 1] / 2e3:.6f},{f[i, 2] / 5e4:.6f}")
+    if rows is not None:
+        lines = rows(lines)
+    csv, mapping = folder / "historian.csv", folder / "columns.toml"
+    csv.write_text("\n".join(lines) + "\n")
+    mapping.write_text(COLUMN_MAP)
+    return csv, mapping
+
+
+def test_a_historian_csv_with_jitter_and_a_gap_fits_as_the_run_does(friction_log, tmp_path):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    out = tmp_path / "calibration"
+    names = ["travel_frictionloss", "slew_frictionloss", "luff_frictionloss"]
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out),
+                      "--params", *names]) == 0
+    summary = json.loads((out / "calibration.json").read_text())
+    # Without speed feedback each window starts from a speed taken off the quantised encoders: 10 %.
+    for name, value in zip(names, FRICTION, strict=True):
+        assert summary["parameters"][name]["fitted"] == pytest.approx(value, rel=0.1), name
+
+
+@pytest.fixture(scope="module")
+def plain_log(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("plain")
+    return twin_log(folder, HEAVY)
+
+
+def test_a_drive_lag_and_an_encoder_offset_are_recovered(plain_log):
+    machine = Machine(HEAVY)
+    log = read_log(plain_log, machine)
+    lag, offset = 0.3, np.radians(0.2)  # s; rad on the luff's encoder
+    late = np.column_stack([np.interp(log.time + lag, log.time, log.force[:, j]) for j in range(3)])
+    log = dataclasses.replace(log, force=late, q=log.q + [0.0, 0.0, offset])
+    result = fit(Problem(machine, catalogue(machine, ["travel_lag", "slew_lag", "luff_offset"]), [log]))
+    # At 10 Hz a lag comes within a sample. An offset shows only through the forces that change
+    # with the pose (each window starts from the encoders), the luff's gravity here: within 30 %.
+    assert estimate(result, "travel_lag").fitted == pytest.approx(lag, abs=0.1)
+    assert estimate(result, "slew_lag").fitted == pytest.approx(lag, abs=0.1)
+    assert estimate(result, "luff_offset").fitted == pytest.approx(offset, rel=0.3)
+
+
+def test_a_mass_position_along_the_boom_is_recovered(tmp_path):
+    text = HEAVY.read_text().replace('<body name="boom_counterweight" pos="-25 0 4">',
+                                     '<body name="boom_counterweight" pos="-26.5 0 4">')
+    mjcf = tmp_path / "variant.xml"
+    mjcf.write_text(text)
+    result = fitted(twin_log(tmp_path, mjcf), ["boom_counterweight_x"])
+    e = estimate(result, "boom_counterweight_x")
+    assert e.identifiable and e.fitted == pytest.approx(-26.5, abs=0.3), e
+
+
+def _bad_rows(kind):
+    def backwards(lines):
+        lines[20], lines[21] = lines[21], lines[20]
+        return lines
+
+    def nan(lines):
+        fields = lines[30].split(",")
+        fields[2] = "nan"
+        lines[30] = ",".join(fields)
+        return lines
+
+    def gap(lines):
+        return lines[:100] + lines[200:]  # 10 s missing: longer than a 5 s window
+
+    return {"backwards": backwards, "nan": nan, "gap": gap}[kind]
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("backwards", r"historian.csv: row 21: time .* does not come after"),
+    ("nan", r"historian.csv: row 30, column 'SLW_POS': nan \(not a finite number\)"),
+    ("gap", r"historian.csv: row 100: a gap of 10.* longer than a window of 5 s"),
+])
+def test_a_bad_historian_log_is_one_line_and_nothing_is_written(friction_log, tmp_path, capsys, kind, message):
+    csv, mapping = historian_csv(friction_log, tmp_path, rows=_bad_rows(kind))
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists() and not list(tmp_path.glob(".calibration*"))
+
+
+@pytest.mark.parametrize("change, message", [
+    (("csv", "LUF_I", "LUF_CURRENT"), r"historian.csv: no column 'LUF_I' \(.*columns.toml: luff_current\)"),
+    (("map", 'unit = "kN m"', 'unit = "kN"'), r"columns.toml: signals.slew_force: unit 'kN'; give one of N m, kN m"),
+    (("map", 'unit = "ms"', 'unit = "h"'), r"columns.toml: time.unit 'h'"),
+])
+def test_columns_or_units_that_do_not_fit_are_named(friction_log, tmp_path, capsys, change, message):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    where, old, new = change
+    target = csv if where == "csv" else mapping
+    target.write_text(target.read_text().replace(old, new, 1))
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists()
+
+
+def test_bounds_outside_physics_a_machine_outside_the_contract_and_another_machine_are_refused(
+        friction_log, tmp_path, capsys):
+    out = tmp_path / "calibration"
+    base = ["fit", str(friction_log), "--out", str(out)]
+    assert calibrate([*base, "--model", str(HEAVY), "--params", "slew_damping=-1e6:1e8"]) == 2
+    assert "'slew_damping=-1e6:1e8': outside what physics and the MJCF's ratings allow, 0 to" in capsys.readouterr().err
+    # Work beyond an hour is refused up front, with its estimate.
+    assert calibrate([*base, "--model", str(HEAVY), "--iterations", "10000000"]) == 2
+    assert re.search(r"would take up to [0-9.]+ h \(\d+ rollouts of", capsys.readouterr().err)
+    broken = tmp_path / "broken.xml"
+    broken.write_text(HEAVY.read_text().replace('<joint name="slew"', '<joint name="swing"'))
+    assert calibrate([*base, "--model", str(broken)]) == 2
+    assert str(broken) in capsys.readouterr().err
+    # The log replayed into a machine of another build: the same file with the boom's counterweight
+    # a tenth of its mass. The residual is far beyond the noise: refused, nothing written.
+    other = tmp_path / "other.xml"
+    other.write_text(edit(HEAVY.read_text(), [("body", "boom_counterweight", "mass", 0, "3.3e4", "")]))
+    assert calibrate([*base, "--model", str(other), "--params", "luff_damping"]) == 2
+    err = capsys.readouterr().err
+    assert "not a log of" in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_a_planned_test_stays_within_the_envelope_and_ratings_and_predicts_its_errors(tmp_path, capsys):
+    from bwr_twin.calibrate.plan import test_motion
+    from bwr_twin.config.scene import load_scene
+
+    out = tmp_path / "test.toml"
+    assert calibrate(["plan", str(HEAVY), "--out", str(out), "--minutes", "2"]) == 0
+    printed = capsys.readouterr().out
+    for name in ("travel_damping", "travel_frictionloss", "slew_armature", "luff_damping"):
+        assert re.search(rf"{name} +nominal .* expected standard error ([0-9.e+-]+|inf) ", printed), printed
+    # Two minutes move only the travel: its friction is determined, the slew's is named as not.
+    assert re.search(r"travel_frictionloss +nominal +0 N +expected standard error [0-9.e+]+ N\n", printed), printed
+    assert re.search(r"slew_frictionloss .*: not determined by this test", printed), printed
+    assert out.read_text().startswith("# written by bwr_twin.calibrate\n")
+    assert load_scene(out).path == out
+    machine = Machine(HEAVY)
+    times, points = test_motion(machine, 10.0)
+    assert times[-1] >= 600.0
+    assert ((points >= machine.envelope[:, 0]) & (points <= machine.envelope[:, 1])).all()
+    peak = 1.5 * np.abs(np.diff(points, axis=0)) / np.diff(times)[:, None]  # a cubic from rest to rest
+    assert (peak <= machine.rated_speed * (1 + 1e-9)).all()
+    for axis in range(3):  # both ways, at several speeds, on every axis
+        moves = np.diff(points[:, axis])
+        assert (moves > 0).any() and (moves < 0).any()
+        assert len(np.unique(np.round(peak[:, axis][peak[:, axis] > 0], 6))) >= 3
+    # A file the twin did not write is left alone.
+    mine = tmp_path / "mine.toml"
+    mine.write_text("# my notes\n")
+    assert calibrate(["plan", str(HEAVY), "--out", str(mine)]) == 2
+    assert "was not written by the twin" in capsys.readouterr().err and mine.read_text() == "# my notes\n"
