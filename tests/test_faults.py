@@ -334,7 +334,7 @@ def test_noise_has_its_sigma_and_comes_from_each_runs_own_stream():
 
 def test_late_inputs_are_the_readings_of_periods_earlier_exactly():
     faults = Faults((FaultSection("late_inputs", 0.2, 0.1, periods=5),), [1, 2], PERIOD)
-    assert len(faults._ring_period) == 6  # the longest delay and the period itself: no more
+    assert len(faults._late._ring_period) == 6  # the longest delay and the period itself: no more
     for k in range(40):
         q, qd = _readings(k)
         faults.measured(k, q, qd)

@@ -23,6 +23,7 @@ from __future__ import annotations
 import ctypes
 import math
 import os
+from dataclasses import dataclass, field
 from itertools import chain
 from operator import itemgetter
 from pathlib import Path
@@ -71,6 +72,19 @@ def _keep_library_loaded(unzipped: Path) -> None:
         ctypes.CDLL(str(library), mode=os.RTLD_NOW | os.RTLD_NOLOAD | os.RTLD_NODELETE)
 
 
+@dataclass
+class ValueRefs:
+    """Where the input and output Reals sit in `BwrReclaimer._now`, by value reference."""
+
+    setpoints: itemgetter | None = None  # the three DriveSetpoints, in axis order
+    inputs: set[int] = field(default_factory=set)
+    outputs: slice = field(default_factory=lambda: slice(0))  # OUTPUTS' axes, in the order the twin gives them
+    rate: int | None = None  # ReclaimRate, in the scenes that dig
+    trim: int | None = None  # SlewSpeedTrim, in a bench reclaim
+    instruments: list[tuple[int, str]] = field(default_factory=list)  # (value reference, the twin's method)
+    neighbour: tuple[slice, int] | None = None  # the neighbour's axes' slice, its report time's reference
+
+
 class BwrReclaimer(Fmi2Slave):
     """One run of the packed scene, stepped a whole number of control periods at a time."""
 
@@ -101,42 +115,40 @@ class BwrReclaimer(Fmi2Slave):
     def _register(self) -> None:
         self._stored_refs: set[int] = set()
         self._pickers: dict[tuple[int, ...], itemgetter] = {}
+        self._refs = refs = ValueRefs()
         setpoints = [self._stored(f"{axis}.{SETPOINT.name}", axis_unit(SETPOINT, i), SETPOINT.meaning,
                                   Fmi2Causality.input) for i, axis in enumerate(AXES)]
-        self._setpoints = itemgetter(*setpoints)
-        self._inputs = set(setpoints)
+        refs.setpoints = itemgetter(*setpoints)
+        refs.inputs = set(setpoints)
         first = len(self.vars)
         for signal in OUTPUTS:
             for i, axis in enumerate(AXES):
                 self._stored(f"{axis}.{signal.name}", axis_unit(signal, i), signal.meaning, Fmi2Causality.output)
-        self._outputs = slice(first, len(self.vars))  # OUTPUTS' axes, in the order the twin gives them
+        refs.outputs = slice(first, len(self.vars))
         for i, axis in enumerate(AXES):
             self.register_variable(Boolean(f"{axis}.{SWITCHES.name}", causality=Fmi2Causality.output,
                                            variability=Fmi2Variability.discrete, description=SWITCHES.meaning,
                                            getter=lambda i=i: self._twin.at_limit[i]))
-        self._rate_ref = self._trim_ref = None  # their value references, in the scenes that have them
-        self._instrument_refs: list[tuple[int, str]] = []  # (value reference, the twin's method)
         if self._base.stockpile is not None:
-            self._rate_ref = self._stored(RECLAIM_RATE.name, RECLAIM_RATE.unit, RECLAIM_RATE.meaning,
+            refs.rate = self._stored(RECLAIM_RATE.name, RECLAIM_RATE.unit, RECLAIM_RATE.meaning,
                                           Fmi2Causality.output)
             mjcf = self._base.machine.mjcf
             scale, motor = read_instruments(compile_model(mjcf), mjcf)
             for signal, present, method in ((BELT_SCALE, scale, "belt_scale"), (WHEEL_CURRENT, motor, "wheel_current")):
                 if present is not None:
                     ref = self._stored(signal.name, signal.unit, signal.meaning, Fmi2Causality.output)
-                    self._instrument_refs.append((ref, method))
-        self._neighbour = None  # the neighbour's outputs: (its axes' slice, its report time's reference)
+                    refs.instruments.append((ref, method))
         if self._base.neighbour is not None:
             first = len(self.vars)
             for i, axis in enumerate(AXES):
                 self._stored(f"{axis}.{NEIGHBOUR_POSITION.name}", axis_unit(NEIGHBOUR_POSITION, i),
                              NEIGHBOUR_POSITION.meaning, Fmi2Causality.output)
-            self._neighbour = (slice(first, len(self.vars)),
+            refs.neighbour = (slice(first, len(self.vars)),
                                self._stored(NEIGHBOUR_REPORT_TIME.name, NEIGHBOUR_REPORT_TIME.unit,
                                             NEIGHBOUR_REPORT_TIME.meaning, Fmi2Causality.output))
         if self._base.reclaim is not None:
-            self._trim_ref = self._stored(TRIM.name, TRIM.unit, TRIM.meaning, Fmi2Causality.input)
-            self._inputs.add(self._trim_ref)
+            refs.trim = self._stored(TRIM.name, TRIM.unit, TRIM.meaning, Fmi2Causality.input)
+            refs.inputs.add(refs.trim)
             self.register_variable(Boolean(TRIM_FROM_INPUT.name, causality=Fmi2Causality.input,
                                            variability=Fmi2Variability.discrete, description=TRIM_FROM_INPUT.meaning,
                                            getter=lambda: self._trim_from_input,
@@ -190,7 +202,7 @@ class BwrReclaimer(Fmi2Slave):
         return pick
 
     def set_real(self, vrs, values):
-        if not self._inputs.issuperset(vrs):
+        if not self._refs.inputs.issuperset(vrs):
             return super().set_real(vrs, values)  # a parameter's setter, or pythonfmu names the bad reference
         now = self._now
         for vr, value in zip(vrs, values):
@@ -229,8 +241,8 @@ class BwrReclaimer(Fmi2Slave):
         """The parameters and inputs as the model description starts them."""
         self._values = {name: self._scene_value(key, index) for name, key, index, _, _ in PARAMETERS}
         self._now: list = [None] * len(self.vars)
-        for vr in self._inputs:
-            self._now[vr] = 1.0 if vr == self._trim_ref else 0.0  # SlewSpeedTrim 1, the drive setpoints 0
+        for vr in self._refs.inputs:
+            self._now[vr] = 1.0 if vr == self._refs.trim else 0.0  # SlewSpeedTrim 1, the drive setpoints 0
         self._trim_from_input = False
 
     def _build(self) -> None:
@@ -246,15 +258,14 @@ class BwrReclaimer(Fmi2Slave):
 
     def _read_outputs(self) -> None:
         """The outputs into `self._now`, as Python floats: once a step rather than once a get."""
-        twin = self._twin
-        now = self._now
-        now[self._outputs] = chain(*twin.measured, twin.drive_applied())  # OUTPUTS' (3,) lists, end to end
-        if self._rate_ref is not None:
-            now[self._rate_ref] = twin.reclaim_rate()
-            for ref, method in self._instrument_refs:
+        twin, now, refs = self._twin, self._now, self._refs
+        now[refs.outputs] = chain(*twin.measured, twin.drive_applied())  # OUTPUTS' (3,) lists, end to end
+        if refs.rate is not None:
+            now[refs.rate] = twin.reclaim_rate()
+            for ref, method in refs.instruments:
                 now[ref] = getattr(twin, method)()
-        if self._neighbour is not None:
-            axes, report_time = self._neighbour
+        if refs.neighbour is not None:
+            axes, report_time = refs.neighbour
             now[axes], now[report_time] = twin.neighbour_position(), twin.neighbour_report_time()
 
     def exit_initialization_mode(self):
@@ -270,7 +281,7 @@ class BwrReclaimer(Fmi2Slave):
         if abs(current_time - twin.k * twin.period) > STEP_TOLERANCE * max(1.0, current_time):
             return self._refuse(f"the step starts at t = {current_time!r} s, the machine is at "
                                 f"t = {twin.k * twin.period!r} s; steps follow each other without gaps")
-        trim = self._now[self._trim_ref] if self._trim_ref is not None else 1.0
+        trim = self._now[self._refs.trim] if self._refs.trim is not None else 1.0
         from_input = self._trim_from_input
         if from_input and not (math.isfinite(trim) and trim > 0):
             return self._refuse(f"SlewSpeedTrim {trim!r}: must be a positive number while SlewSpeedTrimFromInput "
@@ -280,7 +291,7 @@ class BwrReclaimer(Fmi2Slave):
         if whole > twin.periods_left:
             return self._refuse(f"a step of {whole} control periods passes the path's end at "
                                 f"t = {twin.samples * twin.period:g} s ({twin.periods_left} periods left)")
-        drive = self._setpoints(self._now)
+        drive = self._refs.setpoints(self._now)
         with mujoco_warnings():  # MuJoCo's warnings become the run's failure, never the importer's console
             for _ in range(whole):
                 twin.advance(drive)

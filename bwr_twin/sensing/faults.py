@@ -104,13 +104,8 @@ class Faults:
                           ramp_periods(f, period)) for f in faults if f.kind == "drive_derate"]
         self._blinded = [(f.scanner, *fault_periods(f, period)) for f in faults if f.kind == "scanner_blinded"]
         self._frozen = [fault_periods(f, period) for f in faults if f.kind == "belt_scale_frozen"]
-        self._late = [(f.periods, *fault_periods(f, period)) for f in faults if f.kind == "late_inputs"]
-        longest = max((periods for periods, _, _ in self._late), default=0)
-        # A delayed reading is recorded from `periods` before its fault's first period.
-        self._record_span = _span([(max(0, first - periods), last) for periods, first, last in self._late])
-        self._ring_q = np.zeros((longest + 1, self._runs, 3))
-        self._ring_qd = np.zeros((longest + 1, self._runs, 3))
-        self._ring_period = np.full(longest + 1, -1, dtype=np.int64)  # the period each row holds
+        self._late = _LateInputs([(f.periods, *fault_periods(f, period)) for f in faults if f.kind == "late_inputs"],
+                                 self._runs)
 
     def measured(self, k: int, q_measured: np.ndarray, qd_measured: np.ndarray) -> None:
         """Apply the encoder faults and the late inputs of period k to the (runs, 3) readings
@@ -120,9 +115,9 @@ class Faults:
             for fault in self._encoder:
                 if fault.first <= k <= fault.last:
                     fault.apply(k, self._period, q_measured, qd_measured)
-        first, last = self._record_span
+        first, last = self._late.record_span
         if first <= k <= last:
-            self._late_inputs(k, q_measured, qd_measured)
+            self._late.apply(k, q_measured, qd_measured)
 
     def command(self, k: int, command: np.ndarray) -> None:
         """Zero the drive force of every tripped axis in the (runs, 3) command of period k, and
@@ -146,7 +141,25 @@ class Faults:
         """Whether the belt scale's reading is frozen in period k."""
         return any(first <= k <= last for first, last in self._frozen)
 
-    def _late_inputs(self, k: int, q: np.ndarray, qd: np.ndarray) -> None:
+
+class _LateInputs:
+    """The `late_inputs` faults: the readings of the last periods kept in a ring, and handed over late.
+
+    Attributes:
+        record_span: the first and last period whose readings are recorded: from `periods` before
+            a fault's first period, to its last.
+    """
+
+    def __init__(self, late: list[tuple[int, int, int]], runs: int):
+        """`late`: (periods of delay, first, last period) per fault."""
+        self._late = late
+        longest = max((periods for periods, _, _ in late), default=0)
+        self.record_span = _span([(max(0, first - periods), last) for periods, first, last in late])
+        self._ring_q = np.zeros((longest + 1, runs, 3))
+        self._ring_qd = np.zeros((longest + 1, runs, 3))
+        self._ring_period = np.full(longest + 1, -1, dtype=np.int64)  # the period each row holds
+
+    def apply(self, k: int, q: np.ndarray, qd: np.ndarray) -> None:
         """Record period k's readings; if late inputs act, hand over those of the longest delay
         among them instead."""
         rows = len(self._ring_period)

@@ -33,13 +33,35 @@ YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a tur
 Log = Callable[[str], None]
 
 
+class Watchdog:
+    """Real-time mode's watchdog: trips when no setpoint was written for `periods` control periods.
+
+    Attributes:
+        periods: control periods without a DriveSetpoint write that trip it; 0: no watchdog.
+        tripped: latched until Reset, as a drive's fault.
+        fed_at: the control period of the last setpoint write.
+    """
+
+    def __init__(self, periods: int, k: int):
+        self.periods = periods
+        self.clear(k)
+
+    def clear(self, k: int) -> None:
+        self.tripped = False
+        self.fed_at = k
+
+    def starved(self, k: int) -> bool:
+        """At control period k: no write for `periods` periods (never without a watchdog)."""
+        return bool(self.periods) and k - self.fed_at >= self.periods
+
+
 class Clock:
     """The twin's time and drives: setpoints, modes, watchdog, overruns, and the methods.
 
     Attributes:
         setpoint: (3,) drive forces the drives hold, N, N m, N m (the DriveSetpoint nodes).
         running: real-time mode: the clock runs.
-        watchdog_tripped: real-time mode: no setpoint write within `watchdog_periods`.
+        watchdog: real-time mode: trips without a setpoint write in time.
         overruns: real-time mode: control periods computed later than the next one was due.
     """
 
@@ -48,7 +70,7 @@ class Clock:
                  on_done: Callable[[Twin], None] | None = None):
         """`speed`: simulated seconds per wall-clock second; `watchdog_periods` 0: no watchdog."""
         self.twin, self.mode, self.speed = twin, mode, speed
-        self.watchdog_periods = watchdog_periods
+        self.watchdog = Watchdog(watchdog_periods, twin.k)
         self._log, self._on_done = log, on_done
         self.space: AddressSpace | None = None
         self.listeners: list = []  # more publishers of the readings (the Machinery state, the alarms)
@@ -59,9 +81,9 @@ class Clock:
 
     def _clear(self) -> None:
         self.setpoint = np.zeros(3)
-        self.running = self.watchdog_tripped = False
+        self.running = False
         self.overruns = 0
-        self._fed_at = self.twin.k  # the control period of the last setpoint write
+        self.watchdog.clear(self.twin.k)
 
     # -- publishing and writes ---------------------------------------------------------------
 
@@ -69,10 +91,10 @@ class Clock:
         """Every published value by variable name (see address_space), and the MachineryItemState."""
         twin = self.twin
         state = item_state(mode=self.mode, running=self.running, started=twin.k > 0, done=twin.done,
-                           diverged=twin.failure is not None, tripped=self.watchdog_tripped)
+                           diverged=twin.failure is not None, tripped=self.watchdog.tripped)
         return {**twin.reading, "PeriodsLeft": self.periods_left, "ControlPeriod": twin.period,
                 "Running": self.running, "Mode": self.mode,
-                "WatchdogTripped": self.watchdog_tripped, "Overruns": self.overruns, "MachineryItemState": state}
+                "WatchdogTripped": self.watchdog.tripped, "Overruns": self.overruns, "MachineryItemState": state}
 
     @property
     def path_periods(self) -> int:
@@ -113,10 +135,10 @@ class Clock:
                 value = data_value.Value.Value
                 if not isinstance(value, float) or not math.isfinite(value):
                     raise ua.uaerrors.BadOutOfRange  # this node's result (bwr_twin.serve.writes)
-                if self.watchdog_tripped:
+                if self.watchdog.tripped:
                     raise ua.uaerrors.BadInvalidState  # latched until Reset, as a drive's fault
                 self.setpoint[axis] = value
-                self._fed_at = self.twin.k
+                self.watchdog.fed_at = self.twin.k
             node_data.attributes[attribute].value = data_value
 
         return setter
@@ -130,7 +152,7 @@ class Clock:
         if self.mode != REALTIME:
             return status(ua.StatusCodes.BadNotSupported)
         # Tripped, the clock may still run (at zero drive force): Start does not clear a trip, Reset does.
-        if self._finished() or self.watchdog_tripped or self._lock.locked():  # the last: a Step under way
+        if self._finished() or self.watchdog.tripped or self._lock.locked():  # the last: a Step under way
             return status(ua.StatusCodes.BadInvalidState)
         if self.running:
             return []
@@ -190,7 +212,7 @@ class Clock:
         wall_period = twin.period / self.speed
         started = burst = time.perf_counter()  # burst: since the loop last had time to itself
         ticks = 0
-        self._fed_at = twin.k
+        self.watchdog.fed_at = twin.k
         while not self._finished():
             ticks += 1
             due = started + ticks * wall_period
@@ -203,7 +225,7 @@ class Clock:
                 burst = time.perf_counter()
             else:
                 await asyncio.sleep(0)
-            if self.watchdog_periods and twin.k - self._fed_at >= self.watchdog_periods:
+            if self.watchdog.starved(twin.k):
                 await self._trip()
             self._advance(self.setpoint)
             if self._finished():
@@ -213,11 +235,11 @@ class Clock:
                 self.overruns += 1  # published with the next period
 
     async def _trip(self) -> None:
-        if self.watchdog_tripped:
+        if self.watchdog.tripped:
             return
-        self.watchdog_tripped = True
+        self.watchdog.tripped = True
         self.setpoint[:] = 0.0
-        self._log(f"watchdog: no DriveSetpoint write for {self.watchdog_periods} control periods at "
+        self._log(f"watchdog: no DriveSetpoint write for {self.watchdog.periods} control periods at "
                   f"SimTime {self.twin.reading['SimTime']:.2f} s; drives at zero until Reset")
         await self.publish(setpoint=True)
 

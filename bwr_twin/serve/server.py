@@ -139,8 +139,8 @@ def _mode_line(clock: Clock) -> str:
     path = f"{clock.path_periods} control periods{most} of {twin.period * 1e3:g} ms ({twin.loop.duration:g} s path)"
     if clock.mode == LOCKSTEP:
         return f"lockstep: Step(n) advances the twin n control periods; {path}"
-    watchdog = (f"watchdog after {clock.watchdog_periods} periods without a DriveSetpoint write"
-                if clock.watchdog_periods else "no watchdog")
+    watchdog = (f"watchdog after {clock.watchdog.periods} periods without a DriveSetpoint write"
+                if clock.watchdog.periods else "no watchdog")
     return f"realtime at {clock.speed:g}x the wall clock once Start is called; {path}; {watchdog}"
 
 
