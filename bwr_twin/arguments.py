@@ -12,7 +12,6 @@ import re
 import sys
 from typing import NoReturn
 
-
 # What argparse takes for a value rather than an option: a negative number as float() reads it,
 # -inf and -nan included (so that the command, not the parser, says they are not finite).
 NEGATIVE_NUMBER = re.compile(r"^-(?:(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|inf|infinity|nan)$", re.IGNORECASE)

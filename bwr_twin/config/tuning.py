@@ -53,7 +53,6 @@ from bwr_twin.textfile import read_text
 from bwr_twin.tomlfile import MISSING, at_dotted, read_toml
 from bwr_twin.values import is_integer, is_number
 
-
 # metrics.json keys an objective may weigh: a per-axis value whose smaller magnitude is better.
 OBJECTIVE_METRICS = ("position_error_max", "position_error_rms", "velocity_error_max", "acceleration_error_max",
                      "position_error_final", "drive_force_max", "drive_force_rms", "drive_energy")

@@ -160,7 +160,7 @@ class BwrReclaimer(Fmi2Slave):
                    Fmi2Causality.calculatedParameter, variability=Fmi2Variability.fixed,
                    initial=Fmi2Initial.calculated, getter=lambda: self._twin.period)
         for name, _, _, unit, meaning in PARAMETERS:
-            setter = lambda v, name=name: self._values.__setitem__(name, v)  # noqa: E731 - read on leaving init
+            setter = lambda v, name=name: self._values.__setitem__(name, v)
             if unit is None:
                 self.register_variable(Integer(name, causality=Fmi2Causality.parameter,
                                                variability=Fmi2Variability.fixed, description=meaning,

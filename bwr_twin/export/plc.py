@@ -23,6 +23,7 @@ from pathlib import Path
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
+from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.errors import SceneError
 from bwr_twin.export.blocks import (
     computed_torque_block,
@@ -35,7 +36,6 @@ from bwr_twin.export.blocks import (
     rules_cost_bound,
     surface_globals,
 )
-from bwr_twin.control.rulebase import load_rule_base
 from bwr_twin.export.plcopen import project_xml
 from bwr_twin.export.structured_text import (
     Block,

@@ -29,8 +29,8 @@ import numba
 import numpy as np
 
 from bwr_twin.model.machine import Wheel
-from bwr_twin.pile.relaxation import Relaxed, Talus, relax
 from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.relaxation import Relaxed, Talus, relax
 from bwr_twin.pile.surface import Surface
 
 CELL_MARGIN = 0.5  # m the wheel may move before the cells near it are gathered again

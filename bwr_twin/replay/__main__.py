@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 from bwr_twin.arguments import CommandParser
 from bwr_twin.errors import BwrError
 from bwr_twin.exposure import exposure_warning
+from bwr_twin.ownership import check_output
 from bwr_twin.replay.recording import Plan, Recording
 from bwr_twin.replay.runs import MAX_RUNS, Run, check_one_world, choose_runs, load_runs
 from bwr_twin.replay.video import (
@@ -46,7 +47,6 @@ from bwr_twin.replay.video import (
     speed_option,
     write_video,
 )
-from bwr_twin.ownership import check_output
 from bwr_twin.shipped import DEFAULT_SCENE, find_scene
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 

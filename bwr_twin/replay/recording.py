@@ -25,7 +25,14 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.pile.surface import Surface, build_surface
 from bwr_twin.planning.follower import Stage
 from bwr_twin.replay.scans import Scans
-from bwr_twin.results.run_files import GradeSeries, RunScene, TimeSeries, read_scene, read_timeseries, timeseries_of
+from bwr_twin.results.run_files import (
+    GradeSeries,
+    RunScene,
+    TimeSeries,
+    read_scene,
+    read_timeseries,
+    timeseries_of,
+)
 from bwr_twin.shipped import PACKAGE
 from bwr_twin.stockpile.history import PileHistory
 from bwr_twin.stockpile.layers import top_grade

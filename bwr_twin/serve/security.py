@@ -25,9 +25,9 @@ from asyncua.server.user_managers import UserManager
 from asyncua.ua.ua_binary import struct_from_binary
 
 from bwr_twin.errors import BwrError
-from bwr_twin.textfile import read_text
 from bwr_twin.serve.logins import certificate_login, install_login_checks
 from bwr_twin.serve.user_certificates import load_user_certificates, trusted_user
+from bwr_twin.textfile import read_text
 
 SCHEME = "pbkdf2_sha256"
 # The iterations a users file may ask for. The floor is OWASP's current recommendation for

@@ -29,8 +29,8 @@ from bwr_twin.pile.surface import cell_count
 from bwr_twin.planning.stacking import pile_grid
 from bwr_twin.sensing.outputs import HIT_BYTES, SCAN_BYTES, SURVEY_CELL_BYTES
 from bwr_twin.sensing.scanning import planned_scanners
-from bwr_twin.sim.scaling import LAYER_BYTES, Part, bytes_text, check_counts, duration_text, parts
 from bwr_twin.signals import csv_columns, recorded_values
+from bwr_twin.sim.scaling import LAYER_BYTES, Part, bytes_text, check_counts, duration_text, parts
 from bwr_twin.units import SECONDS_PER_HOUR
 
 # Measured costs (docs/performance.md), rounded up.

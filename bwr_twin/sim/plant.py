@@ -232,12 +232,12 @@ def _any(counts):  # pragma: no cover - compiled
     return False
 
 
-class mujoco_warnings:  # noqa: N801 - used as a function: `with mujoco_warnings() as texts:`
+class mujoco_warnings:
     """Collect MuJoCo's warning texts instead of letting MuJoCo print them and write a log file.
 
     A class rather than a generator: a Gymnasium step enters it every control period."""
 
-    __slots__ = ("texts", "_previous")
+    __slots__ = ("_previous", "texts")
 
     def __enter__(self) -> list[str]:
         self._previous = mujoco.get_mju_user_warning()

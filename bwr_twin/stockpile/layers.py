@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from bwr_twin.pile.relaxation import DEFAULT_MAX_ROUNDS, Relaxed, Talus, relax
 from bwr_twin.pile.ground import YARD_FLOOR
+from bwr_twin.pile.relaxation import DEFAULT_MAX_ROUNDS, Relaxed, Talus, relax
 from bwr_twin.pile.surface import Surface
 
 DEFAULT_MAX_LAYERS = 32  # a column's layers, 16 bytes each: 0.5 MB a thousand cells
