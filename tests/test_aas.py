@@ -46,11 +46,14 @@ def scene(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("calibration")
-    (folder / "calibration.json").write_text(json.dumps({"friction": {"travel": 0.05}}))
-    (folder / "report.md").write_text("# Calibration\n\nfriction fitted to 0.05\n")
-    return folder
+def calibration(scene, tmp_path_factory):
+    """A real calibration of the scene's machine: the travel's damping fitted to the scene's own run."""
+    work = tmp_path_factory.mktemp("calibration")
+    assert python("-m", "bwr_twin.run", scene, "--out", work / "log", "--no-plots").returncode == 0
+    fitted = python("-m", "bwr_twin.calibrate", "fit", work / "log", "--model", load_scene(scene).machine.mjcf,
+                    "--params", "travel_damping", "--out", work / "calibration")
+    assert fitted.returncode == 0, fitted.stderr
+    return work / "calibration"
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +118,8 @@ def test_each_submodel_holds_its_templates_semantic_id_and_required_elements(pac
         "Linux" in fmu.get_referable("Environment").get_referable("OperatingSystem").value
     # The calibration report rides along with both models.
     documents = [e.value for e in fmu.value if e.id_short.startswith("RefSimDocumentation")]
-    assert sorted(Path(d).name for d in documents) == ["calibration.json", "report.md"]
+    assert sorted(Path(d).name for d in documents) == ["calibrated.xml", "calibration.json", "parameters.png",
+                                                        "report.html", "residuals.png", "traces.png"]
     assert all(d in files for d in documents)
 
 
@@ -237,6 +241,18 @@ def test_overwrite_follows_ownership_and_no_calibration_leaves_the_entry_out(pac
     refused = python("-m", "bwr_twin.export", "aas", scene, "--out", foreign, "--overwrite")
     assert refused.returncode == 2 and "not written by the twin" in refused.stderr
     assert foreign.read_bytes() == b"the engineer's own"
+
+
+def test_a_calibration_of_another_machine_is_refused_before_any_work(scene, calibration, tmp_path):
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "calibration.json").write_bytes((calibration / "calibration.json").read_bytes())
+    (other / "calibrated.xml").write_bytes((ROOT / "mjcf" / "bwr_heavy.xml").read_bytes())
+    out = tmp_path / "x.aasx"
+    result = python("-m", "bwr_twin.export", "aas", scene, "--out", out, "--calibration", other)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert "a calibration of machine 'bwr_heavy'; the scene's machine is 'bwr'" in result.stderr
+    assert not out.exists()
 
 
 def test_a_bad_calibration_folder_gets_one_line_before_any_work(scene, tmp_path):

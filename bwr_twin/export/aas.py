@@ -26,6 +26,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 from urllib.parse import quote
+from xml.etree import ElementTree
 
 from bwr_twin.config.scene import Scene
 from bwr_twin.errors import BwrError, SceneError
@@ -33,6 +34,7 @@ from bwr_twin.ownership import AAS_WRITER, check_output, write_atomically
 
 FILES = "/aasx/files"  # where the package keeps the files its File elements point at
 CALIBRATION_FILE = "calibration.json"
+CALIBRATED_MJCF = "calibrated.xml"  # beside it, as `python -m bwr_twin.calibrate fit` writes them
 CONTENT_TYPES = {".json": "application/json", ".md": "text/markdown", ".html": "text/html", ".pdf": "application/pdf",
                  ".png": "image/png", ".csv": "text/csv", ".txt": "text/plain", ".xml": "application/xml",
                  ".st": "text/plain", ".svg": "image/svg+xml"}
@@ -57,6 +59,8 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     from bwr_twin.serve.cli import DEFAULT_ENDPOINT
 
     machine = Machine(scene.machine.mjcf)
+    if calibration is not None:
+        _check_calibrated_machine(calibration, machine.name)
     values = nameplate_values(machine)
     uri = values["URIOfTheProduct"]  # the asset: the product instance the OPC UA server names
     shell_id = f"urn:bwr_twin:aas:{quote(machine.name, safe='')}:{quote(values['SerialNumber'], safe='')}"
@@ -136,6 +140,21 @@ def _calibration_files(folder: Path) -> list[Path]:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SceneError(f"--calibration {calibration}: not readable JSON ({exc})") from None
     return sorted(path for path in folder.iterdir() if path.is_file() and not path.name.startswith("."))
+
+
+def _check_calibrated_machine(folder: Path, name: str) -> None:
+    """SceneError if the calibration in `folder` is of another machine than `name` (its
+    calibrated MJCF's model name), before any work."""
+    calibrated = folder / CALIBRATED_MJCF
+    if not calibrated.is_file():
+        return  # a report without the MJCF: nothing tells its machine
+    try:
+        fitted = ElementTree.parse(calibrated).getroot().get("model", "")
+    except (OSError, ElementTree.ParseError) as exc:
+        raise SceneError(f"--calibration {calibrated}: not readable MJCF ({exc})") from None
+    if fitted != name:
+        raise SceneError(f"--calibration {folder}: a calibration of machine {fitted!r}; the scene's machine is "
+                         f"{name!r}: give its own calibration, or the scene the calibrated MJCF")
 
 
 def check_aas(path: Path) -> list[str]:
