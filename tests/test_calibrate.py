@@ -206,15 +206,17 @@ def plain_log(tmp_path_factory):
 def test_a_drive_lag_and_an_encoder_offset_are_recovered(plain_log):
     machine = Machine(HEAVY)
     log = read_log(plain_log, machine)
-    lag, offset = 0.3, np.radians(0.2)  # s; rad on the luff's encoder
+    lag, offset = 0.3, np.radians(0.5)  # s; rad on the luff's encoder
     late = np.column_stack([np.interp(log.time + lag, log.time, log.force[:, j]) for j in range(3)])
     log = dataclasses.replace(log, force=late, q=log.q + [0.0, 0.0, offset])
     result = fit(Problem(machine, catalogue(machine, ["travel_lag", "slew_lag", "luff_offset"]), [log]))
     # At 10 Hz a lag comes within a sample. An offset shows only through the forces that change
     # with the pose (each window starts from the encoders), the luff's gravity here: within 30 %.
+    # A 0.2 deg offset this short test does not determine (its interval, robust to the residual's
+    # correlation within a window, is wider than it): the fit names it and leaves it alone.
     assert estimate(result, "travel_lag").fitted == pytest.approx(lag, abs=0.1)
     assert estimate(result, "slew_lag").fitted == pytest.approx(lag, abs=0.1)
-    assert estimate(result, "luff_offset").fitted == pytest.approx(offset, rel=0.3)
+    assert estimate(result, "luff_offset").fitted == pytest.approx(offset, rel=0.3), estimate(result, "luff_offset")
 
 
 def test_a_mass_position_along_the_boom_is_recovered(tmp_path):

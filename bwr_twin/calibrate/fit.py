@@ -20,11 +20,13 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+import scipy.special
 from mujoco import sysid
 from mujoco.minimize import jacobian_fd
 
 from bwr_twin.calibrate.log import MachineLog
 from bwr_twin.calibrate.parameters import Knob
+from bwr_twin.calibrate.start import equation_error_start, masses_first
 from bwr_twin.calibrate.windows import cut
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.model.spec import Edits, edited_spec
@@ -254,6 +256,9 @@ def fit(problem: Problem, *, iterations: int = MAX_ITERATIONS, progress: Callabl
     params = problem.params.copy()
     for p in params.values():  # a start on a bound (no friction in the file) stalls: start inside
         p.move_off_bound(fraction=0.05)
+    params = masses_first(problem, counter, params, max_iters=iterations, eps=FD_STEP, x_scale="jac")
+    params = equation_error_start(problem, params)
+    problem.scales = _rescale(problem, params)  # weights of what is left at the start, not at the nominal model
     dropped: set[str] = set()
     result, solved = None, ()
     estimates = [Estimate(k, k.nominal, float("nan"), (float("nan"), float("nan")), False) for k in problem.knobs]
@@ -306,6 +311,29 @@ def _rescale(problem: Problem, params: sysid.ParameterDict) -> np.ndarray:
     return np.where(rms > 0, rms, 1.0)
 
 
+def window_intervals(r: np.ndarray, jac: np.ndarray, windows: int, alpha: float = 0.05
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters' covariance and the half-widths of their 1 - alpha intervals, with the
+    residual correlated within a window and independent between windows (each starts from the
+    measured state). sysid's calculate_intervals assumes every sample's noise independent: a
+    torque noise, a gust or a disturbance force integrates into the motion, and its samples
+    within a window then count many times over. Here the covariance is the sandwich
+    (J'J)^-1 (sum over windows of J_w' r_w r_w' J_w) (J'J)^-1, robust to any correlation
+    within a window (White 1980; the clustered form, Liang & Zeger 1986), with Student's t
+    on windows - 1 degrees of freedom. calculate_intervals still names the directions the log
+    does not determine (an infinite width)."""
+    norms = np.linalg.norm(jac, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)  # columns of one size: the singular test sees the directions, not the units
+    _, flagged = sysid.calculate_intervals([r], jac / norms, alpha=alpha)
+    p = jac.shape[1]
+    bread = np.linalg.pinv(jac.T @ jac)
+    scores = np.einsum("wsp,ws->wp", jac.reshape(windows, -1, p), r.reshape(windows, -1))
+    covariance = bread @ (scores.T @ scores) @ bread
+    covariance *= windows / max(windows - 1, 1)  # the small-sample correction of the clustered form
+    half = np.sqrt(np.maximum(np.diag(covariance), 0.0)) * scipy.special.stdtrit(max(windows - 1, 1), 1 - alpha / 2)
+    return covariance, np.where(np.isfinite(flagged), half, np.inf)
+
+
 def _intervals(problem: Problem, residual_fn: Callable, params: sysid.ParameterDict, dropped: set[str]
                ) -> list[Estimate]:
     """Each parameter's standard error and 95 % interval from the Jacobian at `params` (sysid's
@@ -323,7 +351,7 @@ def _intervals(problem: Problem, residual_fn: Callable, params: sysid.ParameterD
     r = f(x)
     jac = np.asarray(jacobian_fd(residual=f, x=x.reshape(-1, 1), r=r.reshape(-1, 1), eps=FD_STEP, n_res=0,
                                  bounds=[bounds[0].reshape(-1, 1), bounds[1].reshape(-1, 1)])[0])
-    covariance, half = sysid.calculate_intervals([r], jac)
+    covariance, half = window_intervals(r, jac, len(problem.windows))
     estimates = []
     index = {k.name: i for i, k in enumerate(free)}
     for knob in problem.knobs:
