@@ -6,12 +6,15 @@ seed, or across a gap in one."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from asyncua import ua
+from test_serve import AlarmEvents, Launched, client, environment, free_port, run
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.results.rundir import write_run
@@ -135,3 +138,71 @@ def test_bad_input_is_one_line(logs, tmp_path):
         assert done.returncode == 2
         assert len(done.stderr.strip().splitlines()) == 1 and says in done.stderr, done.stderr
         assert not (tmp_path / "out").exists()
+
+
+class ServedShadow(Launched):
+    """`python -m bwr_twin.shadow ... --serve URL` on a free loopback port, started at once."""
+
+    def __init__(self, *options: str):
+        self.url = f"opc.tcp://127.0.0.1:{free_port()}"
+        self.stop_signal, self.lines, self._pending = signal.SIGTERM, [], b""
+        command = [sys.executable, "-m", "bwr_twin.shadow", *options, "--serve", self.url, "--duration", "600"]
+        self.process = subprocess.Popen(command, cwd=ROOT, env=environment(), stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE)
+        self.returncode, self.stderr = None, ""
+
+
+async def read_the_served_shadow(url: str) -> tuple[dict, list[dict]]:
+    """The slew's residual and health nodes (value, unit, range, type), then ConditionRefresh's events."""
+    async with client(url) as connection:
+        ns = await connection.get_namespace_index("urn:bwr_twin:shadow")
+        found = {}
+        for name in ("ForceResidual", "PositionResidual", "SpeedResidual", "Health"):
+            node = connection.get_node(ua.NodeId(f"Shadow.Slew.{name}", ns))
+            units = await (await node.get_child("0:EngineeringUnits")).read_value()
+            eu_range = await (await node.get_child("0:EURange")).read_value()
+            found[name] = (await node.read_value(), units.DisplayName.Text, (eu_range.Low, eu_range.High),
+                           (await node.read_type_definition()).Identifier)
+        fault_type = await connection.nodes.base_event_type.get_child(
+            ["0:ConditionType", "0:AcknowledgeableConditionType", "0:AlarmConditionType", f"{ns}:FaultAlarmType"])
+        events = AlarmEvents()
+        subscription = await connection.create_subscription(20, events)
+        await subscription.subscribe_events(connection.nodes.server, fault_type)
+        condition_type = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType))
+        refresh = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh))
+        await condition_type.call_method(refresh, ua.Variant(subscription.subscription_id, ua.VariantType.UInt32))
+        received = [await events.next()]
+        while received[-1]["EventType"] != ua.NodeId(ua.ObjectIds.RefreshEndEventType):
+            received.append(await events.next())
+        return found, received
+
+
+def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp_path):
+    """Over the slew friction log: the slew's residuals and health are analog items with units and
+    ranges, and ConditionRefresh sends the friction alarm, its class, axis, size and onset in its
+    fields and message."""
+    served = ServedShadow("--log", str(logs["friction_rise"]), "--model", str(MJCF), "--baseline",
+                          str(logs["baseline"]), "--out", str(tmp_path / "out"))
+    try:
+        served.wait_for("serving the shadow at", 600)
+        nodes, events = run(read_the_served_shadow(served.url))
+    finally:
+        served.stop()
+    unit_type = ua.ObjectIds.AnalogUnitType
+    assert [(name, unit, t) for name, (_, unit, _, t) in nodes.items()] == [
+        ("ForceResidual", "N·m", unit_type), ("PositionResidual", "rad", unit_type),
+        ("SpeedResidual", "rad/s", unit_type), ("Health", "%", unit_type)]
+    assert nodes["ForceResidual"][2] == (-1.13e7, 1.13e7)  # the slew drive's rating (bwr_heavy.xml)
+    assert nodes["Health"][0] == 0.0 and nodes["Health"][2] == (0.0, 100.0)  # an alarm named the slew
+    header, *_, newest = (tmp_path / "out" / "residuals.csv").read_text().splitlines()
+    last = dict(zip(header.split(","), map(float, newest.split(","))))
+    assert nodes["ForceResidual"][0] == pytest.approx(last["force_slew_Nm"])
+    types = [e["EventType"] for e in events]
+    assert types[0] == ua.NodeId(ua.ObjectIds.RefreshStartEventType) and len(types) == 3, events
+    alarm = events[1]
+    assert (alarm["FaultClass"], alarm["Axis"], alarm["SizeUnit"], alarm["SourceName"]) == (
+        "friction_rise", "slew", "%", "Slew")
+    (logged,) = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
+    assert (alarm["Size"], alarm["OnsetTime"]) == (logged["size"], logged["onset_s"])
+    assert alarm["Retain"] is True and alarm["ConditionClassName"].Text == "Maintenance"
+    assert alarm["Message"].Text.startswith("slew friction_rise +")

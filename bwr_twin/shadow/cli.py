@@ -3,6 +3,7 @@
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --baseline FAULT_FREE_RUN_DIR --out DIR
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --thresholds thresholds.json --out DIR
     python -m bwr_twin.shadow --source opc.tcp://HOST:PORT --tags tags.toml --model MJCF --thresholds FILE
+    ... --serve opc.tcp://127.0.0.1:4841     # and serve the residuals, health and alarms over OPC UA
 
 RUN_DIR is a run directory (or its timeseries.csv) of the machine being watched: its encoders'
 positions, its drives' speed feedback and their forces (docs/shadow.md). The thresholds are
@@ -12,7 +13,10 @@ learned from a fault-free log of the same machine (--baseline), for --false-alar
 position, speed and drift residuals per axis) and thresholds.json. DIR appears only when
 complete. Live (--source), the shadow reads the tags a tag map names (docs/shadow.md) every
 --poll s and prints its events as JSON lines as they happen (the source lost and back, gaps,
-alarms), until Ctrl-C or --duration s. Bad input exits with status 2 and one line.
+alarms), until Ctrl-C or --duration s. With --serve URL the shadow is an OPC UA server too
+(bwr_twin.shadow.publish, docs/shadow.md): live, it publishes each block's residuals, the
+health and the alarms as they come; over a log, their state at the log's end, served until
+Ctrl-C or --duration s. Bad input exits with status 2 and one line.
 """
 
 from __future__ import annotations
@@ -35,7 +39,10 @@ def main(argv: list[str] | None = None) -> int:
     watched.add_argument("--source", help="the machine's OPC UA server, opc.tcp://HOST:PORT, to watch live")
     parser.add_argument("--tags", type=Path, help="live: the tag map (tags.toml)")
     parser.add_argument("--poll", type=float, default=0.01, help="live: s between reads (default 0.01)")
-    parser.add_argument("--duration", type=float, help="live: stop after this many s (default: until Ctrl-C)")
+    parser.add_argument("--duration", type=float, help="live, or a log with --serve: stop after this many s "
+                        "(default: until Ctrl-C)")
+    parser.add_argument("--serve", metavar="URL", help="serve the residuals, health and alarms over OPC UA at "
+                        "opc.tcp://HOST:PORT")
     parser.add_argument("--model", required=True, type=Path, help="the machine's MJCF the twin runs")
     learned = parser.add_mutually_exclusive_group(required=True)
     learned.add_argument("--baseline", type=Path, help="a fault-free run directory of the machine: learn the "
@@ -55,9 +62,11 @@ def _run(args: argparse.Namespace) -> int:
         return _live(args)
     if args.out is None:
         raise BwrError("--out is needed to watch a --log: the folder its events and residuals go to")
-    live_only = [name for name, value in (("--tags", args.tags), ("--duration", args.duration)) if value is not None]
-    if live_only:
-        raise BwrError(f"{live_only[0]} is for a live --source, not a --log")
+    if args.tags is not None:
+        raise BwrError("--tags is for a live --source, not a --log")
+    if args.duration is not None and args.serve is None:
+        raise BwrError("--duration is for a live --source, or a --log with --serve")
+    _check_serving(args)
     from bwr_twin.ownership import check_output
     from bwr_twin.results.rundir import staged_directory
     from bwr_twin.shadow.detect import Thresholds
@@ -87,7 +96,40 @@ def _run(args: argparse.Namespace) -> int:
     for alarm in watched.alarms:
         print(f"alarm: {alarm.describe()}")
     print(f"events in {args.out}/events.jsonl")
+    if args.serve is not None:
+        import asyncio
+
+        asyncio.run(_serve_log(args, twin, thresholds, watched))
     return 0
+
+
+def _check_serving(args: argparse.Namespace) -> None:
+    if args.serve is not None and not args.serve.startswith("opc.tcp://"):
+        raise BwrError(f"--serve must be an opc.tcp://HOST:PORT address, got {args.serve!r}")
+    if args.duration is not None and not args.duration > 0:
+        raise BwrError("--duration must be > 0 s")
+
+
+def _server(args: argparse.Namespace, twin, thresholds):
+    from bwr_twin.shadow.publish import ShadowServer, residual_ranges
+
+    return ShadowServer(args.serve, residual_ranges(twin.limits, twin.machine.rated_speed, thresholds))
+
+
+async def _serve_log(args: argparse.Namespace, twin, thresholds, watched) -> None:
+    """Serve what the shadow made of a log: its last block's residuals, the health at its end,
+    its alarms; until --duration s have passed or Ctrl-C."""
+    import asyncio
+
+    server = _server(args, twin, thresholds)
+    await server.start()
+    try:
+        await server.residuals(watched.blocks)
+        await server.verdict(watched.health, watched.alarms)
+        print(f"serving the shadow at {args.serve}" + ("" if args.duration else ": Ctrl-C stops"), flush=True)
+        await asyncio.sleep(args.duration if args.duration is not None else float("inf"))
+    finally:
+        await server.stop()
 
 
 def _live(args: argparse.Namespace) -> int:
@@ -106,8 +148,9 @@ def _live(args: argparse.Namespace) -> int:
         raise BwrError("--source needs --tags: the tag map naming the machine's variables (docs/shadow.md)")
     if not args.source.startswith("opc.tcp://"):
         raise BwrError(f"--source must be an opc.tcp://HOST:PORT address, got {args.source!r}")
-    if not args.poll > 0 or (args.duration is not None and not args.duration > 0):
-        raise BwrError("--poll and --duration must be > 0 s")
+    if not args.poll > 0:
+        raise BwrError("--poll must be > 0 s")
+    _check_serving(args)
     if not args.model.is_file():
         raise BwrError(f"{args.model}: MJCF file not found")
     twin = ShadowTwin(args.model)
@@ -119,7 +162,19 @@ def _live(args: argparse.Namespace) -> int:
         print(json.dumps(event), flush=True)
 
     shadow = LiveShadow(twin, thresholds, say)
-    asyncio.run(run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration))
+
+    async def live() -> None:
+        server = _server(args, twin, thresholds) if args.serve is not None else None
+        if server is not None:
+            await server.start()
+        try:
+            await run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration,
+                           server=server)
+        finally:
+            if server is not None:
+                await server.stop()
+
+    asyncio.run(live())
     return 0
 
 

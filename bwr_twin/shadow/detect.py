@@ -38,6 +38,7 @@ from bwr_twin.errors import BwrError
 from bwr_twin.shadow.twin import BLOCK, UNIT_MASS, Blocks
 
 AXES = ("travel", "slew", "luff")
+SOURCES = (*AXES, "wheel end")  # what an alarm names: an axis, or the wheel end (a mass change)
 UNITS = ("m", "rad", "rad")
 WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
@@ -206,8 +207,15 @@ def _sigma(values: np.ndarray, floor: np.ndarray | None = None) -> list[float]:
 
 def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     """The alarms over the log's blocks, each class and axis raised once, in time order."""
+    return assess(blocks, t)[0]
+
+
+def assess(blocks: Blocks, t: Thresholds) -> tuple[list[Alarm], dict[str, float]]:
+    """The alarms over the log's blocks (as `detect`) and the health of each of SOURCES after the
+    newest block, in %: 100 less 100 times the largest statistic of its hypotheses against its
+    threshold, 0 at a threshold and below; 0 once an alarm named it."""
     if not len(blocks.start):
-        return []
+        return [], dict.fromkeys(SOURCES, 100.0)
     alarms = _stuck(blocks, t)
     # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
     blind = {AXES.index(a.axis): a.time_s for a in alarms}
@@ -231,7 +239,11 @@ def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
             raised_at = float(blocks.end[k])
             raised.add(_name(h))
             alarms.append(_alarm(blocks, t, h, k, int(onset), float(size), float(g)))
-    return sorted(alarms, key=lambda a: a.time_s)
+    health = {}
+    for j, source in enumerate(SOURCES):
+        worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
+        health[source] = 0.0 if any(a.axis == source for a in alarms) else 100.0 * max(0.0, 1.0 - float(worst))
+    return sorted(alarms, key=lambda a: a.time_s), health
 
 
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:
