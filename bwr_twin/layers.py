@@ -14,6 +14,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "layers", "opcua"),
     ("arrays", "tomlfile"),  # what the files a user gives hold: arrays and rows checked before they are believed, TOML
     ("model",),  # the machine from its MJCF: kinematics, dynamics, collision shapes, instruments, scanners
+    ("drawing",),  # the machine's visual geoms as meshes, posed by its kinematics, in a viser scene
     ("control",),  # the control laws and the fuzzy rule base they read
     ("fis",),  # fuzzy systems in .fis, FCL and FLL, and their conversion to and from control's rule base
     ("config",),  # scene and sweep files, and the plug-in classes they name

@@ -184,7 +184,7 @@ def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp
     served = ServedShadow("--log", str(logs["friction_rise"]), "--model", str(MJCF), "--baseline",
                           str(logs["baseline"]), "--out", str(tmp_path / "out"))
     try:
-        served.wait_for("serving the shadow at", 600)
+        served.wait_for("shown for", 600)
         nodes, events = run(read_the_served_shadow(served.url))
     finally:
         served.stop()

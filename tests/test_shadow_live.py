@@ -67,7 +67,7 @@ async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | N
                 if now - drop_at < STEP * 0.01 / 2:
                     await source._client.disconnect()  # the network drops the shadow's session
                 continue
-            await poll_once(source, shadow, events.append, server)
+            await poll_once(source, shadow, events.append, [server] if server is not None else [])
     await source.close()
 
 

@@ -4,6 +4,7 @@
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --thresholds thresholds.json --out DIR
     python -m bwr_twin.shadow --source opc.tcp://HOST:PORT --tags tags.toml --model MJCF --thresholds FILE
     ... --serve opc.tcp://127.0.0.1:4841     # and serve the residuals, health and alarms over OPC UA
+    ... --view 8080                           # and show them in the browser, http://127.0.0.1:8080
 
 RUN_DIR is a run directory (or its timeseries.csv) of the machine being watched: its encoders'
 positions, its drives' speed feedback and their forces (docs/shadow.md). The thresholds are
@@ -14,14 +15,18 @@ position, speed and drift residuals per axis) and thresholds.json. DIR appears o
 complete. Live (--source), the shadow reads the tags a tag map names (docs/shadow.md) every
 --poll s and prints its events as JSON lines as they happen (the source lost and back, gaps,
 alarms), until Ctrl-C or --duration s. With --serve URL the shadow is an OPC UA server too
-(bwr_twin.shadow.publish, docs/shadow.md): live, it publishes each block's residuals, the
-health and the alarms as they come; over a log, their state at the log's end, served until
-Ctrl-C or --duration s. Bad input exits with status 2 and one line.
+(bwr_twin.shadow.publish, docs/shadow.md), and with --view PORT a page in the browser
+(bwr_twin.shadow.view): live, each block's residuals, the health and the alarms as they come;
+over a log, what the shadow made of it, served until Ctrl-C or --duration s. Bad input exits
+with status 2 and one line.
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import contextlib
+import math
 import sys
 import time
 from pathlib import Path
@@ -43,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
                         "(default: until Ctrl-C)")
     parser.add_argument("--serve", metavar="URL", help="serve the residuals, health and alarms over OPC UA at "
                         "opc.tcp://HOST:PORT")
+    parser.add_argument("--view", metavar="PORT", type=int, help="show the machine, its twin's ghost, the residuals "
+                        "and the alarms at http://127.0.0.1:PORT (0: a free port)")
     parser.add_argument("--model", required=True, type=Path, help="the machine's MJCF the twin runs")
     learned = parser.add_mutually_exclusive_group(required=True)
     learned.add_argument("--baseline", type=Path, help="a fault-free run directory of the machine: learn the "
@@ -64,8 +71,8 @@ def _run(args: argparse.Namespace) -> int:
         raise BwrError("--out is needed to watch a --log: the folder its events and residuals go to")
     if args.tags is not None:
         raise BwrError("--tags is for a live --source, not a --log")
-    if args.duration is not None and args.serve is None:
-        raise BwrError("--duration is for a live --source, or a --log with --serve")
+    if args.duration is not None and args.serve is None and args.view is None:
+        raise BwrError("--duration is for a live --source, or a --log with --serve or --view")
     _check_serving(args)
     from bwr_twin.ownership import check_output
     from bwr_twin.results.rundir import staged_directory
@@ -96,10 +103,8 @@ def _run(args: argparse.Namespace) -> int:
     for alarm in watched.alarms:
         print(f"alarm: {alarm.describe()}")
     print(f"events in {args.out}/events.jsonl")
-    if args.serve is not None:
-        import asyncio
-
-        asyncio.run(_serve_log(args, twin, thresholds, watched))
+    if args.serve is not None or args.view is not None:
+        asyncio.run(_show_log(args, twin, thresholds, watched))
     return 0
 
 
@@ -108,32 +113,47 @@ def _check_serving(args: argparse.Namespace) -> None:
         raise BwrError(f"--serve must be an opc.tcp://HOST:PORT address, got {args.serve!r}")
     if args.duration is not None and not args.duration > 0:
         raise BwrError("--duration must be > 0 s")
+    if args.view is not None and not 0 <= args.view <= 65535:
+        raise BwrError(f"--view must be a TCP port, 0 to 65535, got {args.view}")
 
 
-def _server(args: argparse.Namespace, twin, thresholds):
+@contextlib.asynccontextmanager
+async def _outputs(args: argparse.Namespace, twin, thresholds):
+    """The OPC UA server (--serve) and the view (--view) the shadow publishes to, started; each
+    said where it is; stopped on leaving."""
     from bwr_twin.shadow.publish import ShadowServer, residual_ranges
+    from bwr_twin.shadow.view import ShadowView
 
-    return ShadowServer(args.serve, residual_ranges(twin.limits, twin.machine.rated_speed, thresholds))
-
-
-async def _serve_log(args: argparse.Namespace, twin, thresholds, watched) -> None:
-    """Serve what the shadow made of a log: its last block's residuals, the health at its end,
-    its alarms; until --duration s have passed or Ctrl-C."""
-    import asyncio
-
-    server = _server(args, twin, thresholds)
-    await server.start()
+    outputs = []
     try:
-        await server.residuals(watched.blocks)
-        await server.verdict(watched.health, watched.alarms)
-        print(f"serving the shadow at {args.serve}" + ("" if args.duration else ": Ctrl-C stops"), flush=True)
-        await asyncio.sleep(args.duration if args.duration is not None else float("inf"))
+        if args.serve is not None:
+            server = ShadowServer(args.serve, residual_ranges(twin.limits, twin.machine.rated_speed, thresholds))
+            await server.start()
+            outputs.append(server)
+            print(f"serving the shadow at {args.serve}", flush=True)
+        if args.view is not None:
+            view = ShadowView(twin.machine, port=args.view)
+            outputs.append(view)
+            print(f"view: {view.url}", flush=True)
+        yield outputs
     finally:
-        await server.stop()
+        for output in outputs:
+            await output.stop()
+
+
+async def _show_log(args: argparse.Namespace, twin, thresholds, watched) -> None:
+    """Publish what the shadow made of a log (every block's residuals, the pose at its end, the
+    health, the alarms) until --duration s have passed or Ctrl-C."""
+    async with _outputs(args, twin, thresholds) as outputs:
+        end = watched.measured.time.searchsorted(watched.blocks.end[-1]) if len(watched.blocks.start) else -1
+        for output in outputs:
+            await output.residuals(watched.blocks, watched.measured.q[end])
+            await output.verdict(watched.health, watched.alarms)
+        print("shown" + (f" for {args.duration:g} s" if args.duration else ": Ctrl-C stops"), flush=True)
+        await asyncio.sleep(args.duration if args.duration is not None else math.inf)
 
 
 def _live(args: argparse.Namespace) -> int:
-    import asyncio
     import json
 
     from bwr_twin.shadow.detect import Thresholds
@@ -164,15 +184,9 @@ def _live(args: argparse.Namespace) -> int:
     shadow = LiveShadow(twin, thresholds, say)
 
     async def live() -> None:
-        server = _server(args, twin, thresholds) if args.serve is not None else None
-        if server is not None:
-            await server.start()
-        try:
+        async with _outputs(args, twin, thresholds) as outputs:
             await run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration,
-                           server=server)
-        finally:
-            if server is not None:
-                await server.stop()
+                           outputs=outputs)
 
     asyncio.run(live())
     return 0

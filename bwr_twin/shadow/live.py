@@ -14,7 +14,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 from asyncua import Client, ua
@@ -22,7 +23,6 @@ from asyncua import Client, ua
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import SOURCES, Alarm, Thresholds, assess
 from bwr_twin.shadow.measured import GAP, Measured
-from bwr_twin.shadow.publish import ShadowServer
 from bwr_twin.shadow.tags import Tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
@@ -91,6 +91,20 @@ async def _check_tag(node, node_id: str, what: str, unit: str, tags: Tags) -> No
         return  # a tag without EngineeringUnits: its unit is the map's word
     if shown != unit:
         raise BwrError(f"{tags.path}: tag {what} = {node_id!r} is in {shown}, the shadow needs {unit}")
+
+
+class Output(Protocol):
+    """Where the live shadow publishes: its OPC UA server (bwr_twin.shadow.publish), its view
+    (bwr_twin.shadow.view)."""
+
+    async def residuals(self, blocks: Blocks, measured_q: np.ndarray, arrived: float | None = None) -> None:
+        """The blocks a sample completed; the encoders at the newest one's end; when the sample came."""
+
+    async def verdict(self, health: dict[str, float], alarms: list[Alarm]) -> None:
+        """Each source's health and every alarm so far, after the detectors ran."""
+
+    async def stop(self) -> None:
+        """Stop serving."""
 
 
 class LiveShadow:
@@ -171,17 +185,24 @@ class LiveShadow:
         """The blocks the newest sample completed."""
         return self._blocks[-1]
 
+    def position(self, t: float) -> np.ndarray:
+        """(3,) the encoders' reading at the sample of time `t` (m, rad, rad)."""
+        for sample in reversed(self._samples):
+            if sample[0] <= t:
+                return sample[1::3].copy()
+        return self._samples[0][1::3].copy()
+
     def blocks(self) -> Blocks:
         """Every block so far."""
         return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
 
 
 async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None],
-                    server: ShadowServer | None = None) -> bool:
+                    outputs: Sequence[Output] = ()) -> bool:
     """Read one sample into the shadow; on a dropped source say so, reconnect (every RETRY s until
-    it answers) and say when it is back. True if a sample was read. With a `server`, a block's
-    residuals are published as soon as the twin has them, then its detectors run, then the
-    health and any new alarm are published."""
+    it answers) and say when it is back. True if a sample was read. A block's residuals go to
+    the `outputs` as soon as the twin has them, then its detectors run, then the health and the
+    alarms go to them."""
     try:
         sample = await source.read()
     except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError, AttributeError):
@@ -190,10 +211,13 @@ async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], No
         await _reconnect(source, shadow, say)
         return False
     arrived = time.perf_counter()
-    if shadow.add(sample, detect=server is None) and server is not None:
-        await server.residuals(shadow.newest(), arrived)
+    if shadow.add(sample, detect=not outputs) and outputs:
+        newest = shadow.newest()
+        for output in outputs:
+            await output.residuals(newest, shadow.position(float(newest.end[-1])), arrived)
         shadow.detect()
-        await server.verdict(shadow.health, shadow.alarms)
+        for output in outputs:
+            await output.verdict(shadow.health, shadow.alarms)
     return True
 
 
@@ -209,9 +233,9 @@ async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], N
 
 
 async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, poll: float,
-                   duration: float | None, server: ShadowServer | None = None) -> None:
-    """Watch `source` every `poll` s for `duration` s (None: until cancelled), publishing on
-    `server` if given; a source that cannot be reached at the start is said so and tried again
+                   duration: float | None, outputs: Sequence[Output] = ()) -> None:
+    """Watch `source` every `poll` s for `duration` s (None: until cancelled), publishing to
+    `outputs`; a source that cannot be reached at the start is said so and tried again
     every RETRY s, as one that drops later."""
     async def watch() -> None:
         try:
@@ -220,7 +244,7 @@ async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], Non
             say({"event": "source_lost", "time_s": 0.0, "source": source.url})
             await _reconnect(source, shadow, say)
         while True:
-            await poll_once(source, shadow, say, server)
+            await poll_once(source, shadow, say, outputs)
             await asyncio.sleep(poll)
 
     try:

@@ -124,9 +124,11 @@ class ShadowServer:
             raise BwrError(f"--serve {self.url}: cannot listen ({reason})") from None
         self._server = server
 
-    async def residuals(self, blocks: Blocks, arrived: float | None = None) -> None:
-        """Publish the newest of `blocks`' residuals; `arrived`: the perf_counter time the sample
-        that completed it arrived, for `latencies`."""
+    async def residuals(self, blocks: Blocks, measured_q: np.ndarray | None = None,
+                        arrived: float | None = None) -> None:
+        """Publish the newest of `blocks`' residuals (`measured_q`, the encoders at its end, is the
+        view's); `arrived`: the perf_counter time the sample that completed it arrived, for
+        `latencies`."""
         if not len(blocks.start):
             return
         await self._write("Time", "shadow", float(blocks.end[-1]))
