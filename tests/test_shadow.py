@@ -39,8 +39,8 @@ FAULTS = {
                      "travel", 100.0, 15.0, 0.2),
     "encoder_drift": ('kind = "encoder_drift"\naxis = "travel"\nrate = 0.0016667\nstart = 100.0', "encoder_drift",
                       "travel", 100.0, 0.0016667, 0.2),  # 0.1 m over a minute
-    "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.0', "stuck_encoder", "slew", 120.0,
-                      None, None),
+    "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.4', "stuck_encoder", "slew", 120.4,
+                      None, None),  # mid-block, while the slew moves
 }
 
 
@@ -206,3 +206,30 @@ def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp
     assert (alarm["Size"], alarm["OnsetTime"]) == (logged["size"], logged["onset_s"])
     assert alarm["Retain"] is True and alarm["ConditionClassName"].Text == "Maintenance"
     assert alarm["Message"].Text.startswith("slew friction_rise +")
+
+
+def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gives():
+    """assess over a growing series, keeping its statistics (the live shadow), against one pass
+    over the whole series (a log): the same alarms and health, to the bit."""
+    from bwr_twin.shadow.detect import assess, learn
+    from bwr_twin.shadow.twin import Blocks
+
+    rng = np.random.default_rng(1)
+
+    def blocks(n: int, fault_from: int | None = None) -> Blocks:
+        zeros, friction = np.zeros((n, 3)), rng.normal(-1e3, 1e2, (n, 3))
+        force = rng.normal(0.0, 1e3, (n, 3))
+        if fault_from is not None:
+            force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
+        return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
+                      rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, friction,
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
+
+    thresholds = learn(blocks(200), np.array([1e-3, 1e-3, 1e-3]), 0.01)
+    series = blocks(400, fault_from=250)
+    known: list = []
+    for n in range(10, 400, 7):
+        assess(Blocks(*(getattr(series, f)[:n] for f in Blocks.__dataclass_fields__)), thresholds, known)
+    alarms, health = assess(series, thresholds, known)
+    assert (alarms, health) == assess(series, thresholds)
+    assert [(a.kind, a.axis) for a in alarms] == [("friction_rise", "slew")]

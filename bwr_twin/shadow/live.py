@@ -121,6 +121,8 @@ class LiveShadow:
         self._blocks: list[Blocks] = []
         self.alarms: list[Alarm] = []
         self.health = dict.fromkeys(SOURCES, 100.0)  # % after the newest block (bwr_twin.shadow.detect.assess)
+        self._statistics: list = []  # the detectors' statistics of the blocks so far, for these thresholds
+        self._statistics_for: Thresholds | None = None
         self.gaps: list[tuple[float, float]] = []
 
     @property
@@ -174,7 +176,9 @@ class LiveShadow:
         and update `health`."""
         if self.thresholds is None or not self._blocks:
             return
-        alarms, self.health = assess(self.blocks(), self.thresholds)
+        if self._statistics_for is not self.thresholds:  # thresholds set or changed: start afresh
+            self._statistics, self._statistics_for = [], self.thresholds
+        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics)
         known = {(a.kind, a.axis) for a in self.alarms}
         for alarm in alarms:
             if (alarm.kind, alarm.axis) not in known:
