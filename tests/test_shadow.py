@@ -131,7 +131,9 @@ def test_bad_input_is_one_line(logs, tmp_path):
     junk = tmp_path / "thresholds.json"
     junk.write_text("{}")
     for args, says in ((["--log", str(tmp_path / "nowhere"), "--baseline", str(logs["baseline"])], "no log there"),
-                       (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file")):
+                       (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file"),
+                       (["--log", str(logs["baseline"]), "--thresholds", str(junk), "--serve", "http://127.0.0.1:4841"],
+                        "--serve must be an opc.tcp://HOST:PORT address")):
         done = subprocess.run([sys.executable, "-m", "bwr_twin.shadow", *args, "--model", str(MJCF),
                                "--out", str(tmp_path / "out")], check=False, capture_output=True, text=True,
                               cwd=ROOT, timeout=600)
