@@ -8,11 +8,13 @@ __init__.py.
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),  # the exceptions every layer raises, and the exit status they give
-    # small helpers: units, numbers, text files, signal names, the CLI's parts, shipped files, output marks
+    # small helpers: units, numbers, text files, signal names, the CLI's parts, shipped files, output marks,
+    # OPC UA's building blocks
     ("units", "values", "textfile", "signals", "progress", "arguments", "exposure", "shipped", "ownership", "streams",
-     "layers"),
+     "layers", "opcua"),
     ("arrays", "tomlfile"),  # what the files a user gives hold: arrays and rows checked before they are believed, TOML
     ("model",),  # the machine from its MJCF: kinematics, dynamics, collision shapes, instruments, scanners
+    ("drawing",),  # the machine's visual geoms as meshes, posed by its kinematics, in a viser scene
     ("control",),  # the control laws and the fuzzy rule base they read
     ("fis",),  # fuzzy systems in .fis, FCL and FLL, and their conversion to and from control's rule base
     ("config",),  # scene and sweep files, and the plug-in classes they name

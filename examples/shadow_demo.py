@@ -1,9 +1,10 @@
 """The shadow beside a served machine: `python -m bwr_twin.serve` plays the heavy machine with a
 plant fault at a time this script does not print until the end, a PLC (a per-axis PID at 10 Hz,
 in lockstep) drives it along scenes/heavy_shadow.toml's path, and the live shadow, a second OPC
-UA client, watches it and prints its events as they happen.
+UA client, watches it and prints its events as they happen, and shows them in the browser: the
+machine as measured, its twin's ghost, the residuals and the alarms (bwr_twin.shadow.view).
 
-    python examples/shadow_demo.py [--seed N]          # or: make shadow
+    python examples/shadow_demo.py [--seed N] [--view PORT]          # or: make shadow
 
 The shadow learns its thresholds from the first LEARN s, which are fault-free; the fault (a
 friction rise, a mass change or a derate, drawn from the seed) starts later.
@@ -16,6 +17,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,7 @@ from bwr_twin.shadow.live import LiveShadow, Source, poll_once
 from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import ShadowTwin
+from bwr_twin.shadow.view import ShadowView
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "heavy_shadow.toml"
@@ -41,8 +44,7 @@ FAULTS = ('kind = "friction_rise"\naxis = "slew"\npercent = 40.0', 'kind = "mass
           'kind = "drive_derate"\naxis = "travel"\npercent = 20.0')
 
 
-async def watch(url: str) -> None:
-    twin = ShadowTwin(MJCF)
+async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
     shadow = LiveShadow(twin, None, lambda event: print(json.dumps(event), flush=True))
     source = Source(url, read_tags(TAGS, twin.model_name))
     await source.connect()
@@ -64,7 +66,7 @@ async def watch(url: str) -> None:
             forces = np.array(HOLD) + np.array(KP) * error + np.array(KD) * rate + np.array(KI) * integral
             await plc.write_values(setpoints, [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
             await reclaimer.call_method(step, ua.Variant(STEP, ua.VariantType.UInt32))
-            await poll_once(source, shadow, print)
+            await poll_once(source, shadow, print, [view])
             if shadow.thresholds is None and shadow.time >= LEARN:
                 shadow.thresholds = learn(shadow.blocks(), encoder_counts(shadow.measured()), 0.01)
                 print(f"thresholds learned on the first {LEARN:g} s; watching", flush=True)
@@ -76,6 +78,7 @@ async def watch(url: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=None, help="draws the fault and its time (default: at random)")
+    parser.add_argument("--view", type=int, default=8080, help="the view's port (default 8080; 0: a free one)")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     fault, start = FAULTS[rng.integers(len(FAULTS))], float(round(rng.uniform(LEARN + 20, SECONDS - 60)))
@@ -91,11 +94,20 @@ def main() -> None:
             for line in server.stdout:
                 if line.startswith("Ctrl-C stops"):
                     break
-            asyncio.run(watch(url))
+            twin = ShadowTwin(MJCF)
+            view = ShadowView(twin.machine, port=args.view)
+            print(f"the shadow's view: {view.url}", flush=True)
+            asyncio.run(watch(url, twin, view))
         finally:
             server.terminate()
             server.wait(timeout=30)
     print(f"the machine's fault was: {' '.join(fault.split())}, from {start:g} s")
+    print(f"the view stays at {view.url} until Ctrl-C", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        asyncio.run(view.stop())
 
 
 if __name__ == "__main__":

@@ -21,8 +21,8 @@ import pytest
 from conftest import ROOT, SCENES, SHORT_VIA_POINTS
 from headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
+from bwr_twin.drawing.geometry import visual_geoms
 from bwr_twin.replay import Recording, ReplayServer, export_html
-from bwr_twin.replay.geometry import visual_geoms
 
 try:
     from playwright.sync_api import expect
@@ -477,3 +477,36 @@ def test_a_stacking_replay_colours_its_pile_by_grade(browser):
             assert any(title == "Grade stacked, as it arrived" and points > 2 for title, points in titles), titles
         finally:
             page.close()
+
+
+def test_the_shadows_view_shows_the_machine_its_ghost_and_the_alarms(browser):
+    """The shadow's page: the measured machine and the twin's ghost both drawn, an alarm listed.
+    (The shadow's publishing is async; Playwright's sync API holds this thread's event loop.)"""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from bwr_twin.model.machine import Machine
+    from bwr_twin.shadow.detect import Alarm
+    from bwr_twin.shadow.twin import Blocks
+    from bwr_twin.shadow.view import ShadowView
+
+    view = ShadowView(Machine(ROOT / "mjcf" / "bwr_heavy.xml"), port=0)
+    n, zeros = 30, np.zeros((30, 3))
+    residual = np.tile([0.0, 0.02, 0.0], (n, 1))  # the slew 0.02 rad (1.1 deg) ahead of its twin
+    blocks = Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), zeros + 1e5, residual, zeros, zeros,
+                    np.zeros((n, 3), bool), zeros, zeros, zeros, zeros)
+    alarm = Alarm("friction_rise", "slew", 30.0, 12.0, 27.9, "%", 80.0, 40.0)
+    health = {"travel": 100.0, "slew": 0.0, "luff": 96.0, "wheel end": 100.0}
+    with ThreadPoolExecutor(1) as other:
+        other.submit(asyncio.run, view.residuals(blocks, np.array([10.0, 0.3, 0.05]))).result()
+        other.submit(asyncio.run, view.verdict(health, [alarm])).result()
+    page = browser.new_page()
+    try:
+        page.goto(view.url)
+        wait_for_machine(page, view.measured.geoms + view.twin.geoms)  # the solid machine and its ghost
+        expect(page.get_by_text("slew friction_rise")).to_be_visible(timeout=WAIT_MS)
+        ARTIFACTS.mkdir(exist_ok=True)
+        (ARTIFACTS / "shadow.png").write_bytes(page.screenshot(timeout=WAIT_MS))
+    finally:
+        page.close()
+        view.server.stop()

@@ -19,10 +19,10 @@ import pytest
 from conftest import HEAVY_MJCF, PAPER_MJCF, ROOT, SCENES, SHORT_VIA_POINTS, VARIANT_MJCF
 
 from bwr_twin import Machine
+from bwr_twin.drawing.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.model.machine import paper_to_world
 from bwr_twin.replay import Plan, Recording, ReplayServer, export_html, readout
 from bwr_twin.replay.charts import charts
-from bwr_twin.replay.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.replay.recording import cache_key
 from bwr_twin.replay.scenery import ANGLE_OF_REPOSE, CREST_HEIGHT_FRACTION, stockpile
 
@@ -178,7 +178,7 @@ def test_only_moving_rigid_bodies_get_poses():
 
 
 def test_primitive_meshes_are_closed_and_face_outwards():
-    from bwr_twin.replay.geometry import box, capsule, cylinder, ellipsoid
+    from bwr_twin.drawing.geometry import box, capsule, cylinder, ellipsoid
 
     for vertices, faces in (box((1, 2, 3)), cylinder(1, 2), capsule(1, 2), ellipsoid((1, 2, 3))):
         corners = vertices[faces]

@@ -30,8 +30,8 @@ from test_scanned_reclaim import FINE, SCANNED, SURVEY
 from test_stockpile import SHORT_DIG
 
 from bwr_twin.config.scene import load_scene
+from bwr_twin.drawing.geometry import visual_geoms
 from bwr_twin.replay import Recording, ReplayServer, export_html
-from bwr_twin.replay.geometry import visual_geoms
 from bwr_twin.replay.pile import display_step, samples
 from bwr_twin.replay.scan_view import EXPORT, LIVE
 from bwr_twin.replay.scans import MISS_SHARE

@@ -6,12 +6,15 @@ seed, or across a gap in one."""
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from asyncua import ua
+from test_serve import AlarmEvents, Launched, client, environment, free_port, run
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.results.rundir import write_run
@@ -36,8 +39,8 @@ FAULTS = {
                      "travel", 100.0, 15.0, 0.2),
     "encoder_drift": ('kind = "encoder_drift"\naxis = "travel"\nrate = 0.0016667\nstart = 100.0', "encoder_drift",
                       "travel", 100.0, 0.0016667, 0.2),  # 0.1 m over a minute
-    "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.0', "stuck_encoder", "slew", 120.0,
-                      None, None),
+    "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.4', "stuck_encoder", "slew", 120.4,
+                      None, None),  # mid-block, while the slew moves
 }
 
 
@@ -128,10 +131,107 @@ def test_bad_input_is_one_line(logs, tmp_path):
     junk = tmp_path / "thresholds.json"
     junk.write_text("{}")
     for args, says in ((["--log", str(tmp_path / "nowhere"), "--baseline", str(logs["baseline"])], "no log there"),
-                       (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file")):
+                       (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file"),
+                       (["--log", str(logs["baseline"]), "--thresholds", str(junk), "--serve", "http://127.0.0.1:4841"],
+                        "--serve must be an opc.tcp://HOST:PORT address")):
         done = subprocess.run([sys.executable, "-m", "bwr_twin.shadow", *args, "--model", str(MJCF),
                                "--out", str(tmp_path / "out")], check=False, capture_output=True, text=True,
                               cwd=ROOT, timeout=600)
         assert done.returncode == 2
         assert len(done.stderr.strip().splitlines()) == 1 and says in done.stderr, done.stderr
         assert not (tmp_path / "out").exists()
+
+
+class ServedShadow(Launched):
+    """`python -m bwr_twin.shadow ... --serve URL` on a free loopback port, started at once."""
+
+    def __init__(self, *options: str):
+        self.url = f"opc.tcp://127.0.0.1:{free_port()}"
+        self.stop_signal, self.lines, self._pending = signal.SIGTERM, [], b""
+        command = [sys.executable, "-m", "bwr_twin.shadow", *options, "--serve", self.url, "--duration", "600"]
+        self.process = subprocess.Popen(command, cwd=ROOT, env=environment(), stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE)
+        self.returncode, self.stderr = None, ""
+
+
+async def read_the_served_shadow(url: str) -> tuple[dict, list[dict]]:
+    """The slew's residual and health nodes (value, unit, range, type), then ConditionRefresh's events."""
+    async with client(url) as connection:
+        ns = await connection.get_namespace_index("urn:bwr_twin:shadow")
+        found = {}
+        for name in ("ForceResidual", "PositionResidual", "SpeedResidual", "Health"):
+            node = connection.get_node(ua.NodeId(f"Shadow.Slew.{name}", ns))
+            units = await (await node.get_child("0:EngineeringUnits")).read_value()
+            eu_range = await (await node.get_child("0:EURange")).read_value()
+            found[name] = (await node.read_value(), units.DisplayName.Text, (eu_range.Low, eu_range.High),
+                           (await node.read_type_definition()).Identifier)
+        fault_type = await connection.nodes.base_event_type.get_child(
+            ["0:ConditionType", "0:AcknowledgeableConditionType", "0:AlarmConditionType", f"{ns}:FaultAlarmType"])
+        events = AlarmEvents()
+        subscription = await connection.create_subscription(20, events)
+        await subscription.subscribe_events(connection.nodes.server, fault_type)
+        condition_type = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType))
+        refresh = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh))
+        await condition_type.call_method(refresh, ua.Variant(subscription.subscription_id, ua.VariantType.UInt32))
+        received = [await events.next()]
+        while received[-1]["EventType"] != ua.NodeId(ua.ObjectIds.RefreshEndEventType):
+            received.append(await events.next())
+        return found, received
+
+
+def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp_path):
+    """Over the slew friction log: the slew's residuals and health are analog items with units and
+    ranges, and ConditionRefresh sends the friction alarm, its class, axis, size and onset in its
+    fields and message."""
+    served = ServedShadow("--log", str(logs["friction_rise"]), "--model", str(MJCF), "--baseline",
+                          str(logs["baseline"]), "--out", str(tmp_path / "out"))
+    try:
+        served.wait_for("shown for", 600)
+        nodes, events = run(read_the_served_shadow(served.url))
+    finally:
+        served.stop()
+    unit_type = ua.ObjectIds.AnalogUnitType
+    assert [(name, unit, t) for name, (_, unit, _, t) in nodes.items()] == [
+        ("ForceResidual", "N·m", unit_type), ("PositionResidual", "rad", unit_type),
+        ("SpeedResidual", "rad/s", unit_type), ("Health", "%", unit_type)]
+    assert nodes["ForceResidual"][2] == (-1.13e7, 1.13e7)  # the slew drive's rating (bwr_heavy.xml)
+    assert nodes["Health"][0] == 0.0 and nodes["Health"][2] == (0.0, 100.0)  # an alarm named the slew
+    header, *_, newest = (tmp_path / "out" / "residuals.csv").read_text().splitlines()
+    last = dict(zip(header.split(","), map(float, newest.split(","))))
+    assert nodes["ForceResidual"][0] == pytest.approx(last["force_slew_Nm"])
+    types = [e["EventType"] for e in events]
+    assert types[0] == ua.NodeId(ua.ObjectIds.RefreshStartEventType) and len(types) == 3, events
+    alarm = events[1]
+    assert (alarm["FaultClass"], alarm["Axis"], alarm["SizeUnit"], alarm["SourceName"]) == (
+        "friction_rise", "slew", "%", "Slew")
+    (logged,) = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
+    assert (alarm["Size"], alarm["OnsetTime"]) == (logged["size"], logged["onset_s"])
+    assert alarm["Retain"] is True and alarm["ConditionClassName"].Text == "Maintenance"
+    assert alarm["Message"].Text.startswith("slew friction_rise +")
+
+
+def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gives():
+    """assess over a growing series, keeping its statistics (the live shadow), against one pass
+    over the whole series (a log): the same alarms and health, to the bit."""
+    from bwr_twin.shadow.detect import assess, learn
+    from bwr_twin.shadow.twin import Blocks
+
+    rng = np.random.default_rng(1)
+
+    def blocks(n: int, fault_from: int | None = None) -> Blocks:
+        zeros, friction = np.zeros((n, 3)), rng.normal(-1e3, 1e2, (n, 3))
+        force = rng.normal(0.0, 1e3, (n, 3))
+        if fault_from is not None:
+            force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
+        return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
+                      rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, friction,
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
+
+    thresholds = learn(blocks(200), np.array([1e-3, 1e-3, 1e-3]), 0.01)
+    series = blocks(400, fault_from=250)
+    known: list = []
+    for n in range(10, 400, 7):
+        assess(Blocks(*(getattr(series, f)[:n] for f in Blocks.__dataclass_fields__)), thresholds, known)
+    alarms, health = assess(series, thresholds, known)
+    assert (alarms, health) == assess(series, thresholds)
+    assert [(a.kind, a.axis) for a in alarms] == [("friction_rise", "slew")]

@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 from asyncua import ua
 from conftest import ROOT
-from test_serve import CALL_TIMEOUT, Launched, client, environment, free_port
+from test_serve import CALL_TIMEOUT, AlarmEvents, Launched, client, environment, free_port
 
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import learn
 from bwr_twin.shadow.live import LiveShadow, Source, poll_once
 from bwr_twin.shadow.measured import encoder_counts
+from bwr_twin.shadow.publish import ShadowServer, residual_ranges
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
@@ -37,9 +38,10 @@ KP, KD, KI = (1193000.0, 705600000.0, 652700000.0), (2386000.0, 1411200000.0, 13
 HOLD = (0.0, 0.0, 11203667.5)
 
 
-async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | None = None) -> None:
-    """A PLC at 10 Hz for SECONDS; the shadow polls after every cycle; at `drop_at` s its
-    connection is cut and the PLC runs a second on before the shadow polls again."""
+async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | None = None,
+                  server: ShadowServer | None = None) -> None:
+    """A PLC at 10 Hz for SECONDS; the shadow polls after every cycle (publishing on `server`); at
+    `drop_at` s its connection is cut and the PLC runs a second on before the shadow polls again."""
     source = Source(url, read_tags(TAGS, "bwr_heavy"))
     await source.connect()
     async with client(url) as plc:
@@ -65,7 +67,7 @@ async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | N
                 if now - drop_at < STEP * 0.01 / 2:
                     await source._client.disconnect()  # the network drops the shadow's session
                 continue
-            await poll_once(source, shadow, events.append)
+            await poll_once(source, shadow, events.append, [server] if server is not None else [])
     await source.close()
 
 
@@ -105,7 +107,9 @@ def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tm
                       f"start = {ONSET}\n")
     events: list = []
     shadow = LiveShadow(twin, thresholds, events.append)
-    served(faulty, lambda url: session(url, shadow, events, drop_at=25.0))
+    published = ShadowServer(f"opc.tcp://127.0.0.1:{free_port()}",
+                             residual_ranges(twin.limits, twin.machine.rated_speed, thresholds))
+    newest, health, condition = served(faulty, lambda url: watched_and_served(url, shadow, events, published))
     kinds = [e["event"] for e in events]
     assert "source_lost" in kinds and "source_back" in kinds, events
     (gap,) = [e for e in events if e["event"] == "gap"]
@@ -113,6 +117,34 @@ def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tm
     alarms = [e for e in events if e["event"] == "alarm"]
     assert [(a["kind"], a["axis"]) for a in alarms] == [("friction_rise", "slew")], events
     assert alarms[0]["time_s"] >= ONSET
+    # Served as it went: each block's residuals, the slew's health down to 0 with its alarm.
+    assert newest == shadow.blocks().end[-1] and len(published.latencies) == len(shadow.blocks().start)
+    assert health == 0.0 and condition == ("friction_rise", "slew")
+
+
+async def watched_and_served(url: str, shadow: LiveShadow, events: list, published: ShadowServer) -> tuple:
+    """The session with the shadow publishing; then what a client reads of it: the newest block's
+    end, the slew's health and the fault class and axis of the condition ConditionRefresh sends."""
+    await published.start()
+    try:
+        await session(url, shadow, events, drop_at=25.0, server=published)
+        async with client(published.url) as connection:
+            ns = await connection.get_namespace_index("urn:bwr_twin:shadow")
+            newest = await connection.get_node(ua.NodeId("Shadow.Time", ns)).read_value()
+            health = await connection.get_node(ua.NodeId("Shadow.Slew.Health", ns)).read_value()
+            alarms = AlarmEvents()
+            subscription = await connection.create_subscription(20, alarms)
+            fault_type = await connection.nodes.base_event_type.get_child(
+                ["0:ConditionType", "0:AcknowledgeableConditionType", "0:AlarmConditionType", f"{ns}:FaultAlarmType"])
+            await subscription.subscribe_events(connection.nodes.server, fault_type)
+            refresh = connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType_ConditionRefresh))
+            await connection.get_node(ua.NodeId(ua.ObjectIds.ConditionType)).call_method(
+                refresh, ua.Variant(subscription.subscription_id, ua.VariantType.UInt32))
+            await alarms.next()  # RefreshStart
+            alarm = await alarms.next()
+            return newest, health, (alarm["FaultClass"], alarm["Axis"])
+    finally:
+        await published.stop()
 
 
 def test_a_map_for_another_machine_is_one_line():

@@ -99,8 +99,8 @@ def test_a_schedule_out_of_order_or_envelope_is_refused_naming_the_step(tmp_path
 def test_the_replay_draws_the_neighbour_where_the_run_put_it(meeting, tmp_path):
     """The run directory keeps the neighbour's schedule and joints; the replay reads them back and
     poses the neighbour's bodies with its own kinematics, beside the machine's."""
+    from bwr_twin.drawing.geometry import BodyPoser
     from bwr_twin.replay import Plan, Recording, ReplayServer
-    from bwr_twin.replay.geometry import BodyPoser
     from bwr_twin.results.run_files import read_timeseries
     from bwr_twin.results.rundir import write_run
 

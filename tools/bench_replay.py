@@ -41,8 +41,8 @@ def machine_triangles(source: Path) -> int:
     """Triangles of the machines' visual geoms, from the scene's (or runs') MJCF: all of the first
     run's, and the moving ones of each other run of its world."""
     from bwr_twin.config.scene import load_scene
+    from bwr_twin.drawing.geometry import BodyPoser, visual_geoms
     from bwr_twin.model.machine import Machine
-    from bwr_twin.replay.geometry import BodyPoser, visual_geoms
     from bwr_twin.replay.runs import run_folders
     from bwr_twin.results.run_files import read_scene
     from bwr_twin.results.rundir import SCENE_FILE

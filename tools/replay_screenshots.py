@@ -25,8 +25,8 @@ sys.path.insert(0, str(ROOT / "tests"))  # the headless-browser driver the brows
 
 from headless import RENDERED_TRIANGLES, chromium_context, find_chromium
 
+from bwr_twin.drawing.geometry import visual_geoms
 from bwr_twin.replay import ReplayServer, export_html
-from bwr_twin.replay.geometry import visual_geoms
 from bwr_twin.replay.runs import choose_runs, load_runs
 
 WAIT_MS = 120_000

@@ -25,6 +25,7 @@ import numpy as np
 from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.rundir import write_run
+from bwr_twin.shadow.detect import STUCK_COUNTS
 from bwr_twin.shadow.twin import ShadowTwin
 from bwr_twin.shadow.watch import learn_from, watch
 from bwr_twin.sim.lockstep import simulate
@@ -65,6 +66,15 @@ def classes() -> dict[str, tuple[str, str, str, float | None]]:
     }
 
 
+def seen_from(measured, onset: float, thresholds) -> float:
+    """s: when the slew, by its drive's speed feedback, had moved STUCK_COUNTS encoder counts since
+    `onset`: the earliest a stuck encoder can be told from a still axis."""
+    after = measured.time >= onset
+    moved = np.cumsum(measured.speed[after, 1] * np.gradient(measured.time[after]))
+    beyond = np.flatnonzero(np.abs(moved) > STUCK_COUNTS * thresholds.counts[1])
+    return float(measured.time[after][beyond[0]]) if len(beyond) else float("nan")
+
+
 def run(out: Path, name: str, seed: int, table: str = "") -> Path:
     folder = out / name
     if (folder / "timeseries.csv").is_file():
@@ -87,20 +97,28 @@ def main() -> None:
 
     print("| class | seeds | median delay (s) | target | isolated | sizes estimated |")
     print("| --- | --- | --- | --- | --- | --- |")
+    observable = []  # s from when the stuck encoder's axis had moved STUCK_COUNTS counts to its alarm
     for label, (table, kind, axis, target) in classes().items():
         delays, right, sizes = [], 0, []
         for seed in range(1, args.seeds + 1):
             onset = float(round(np.random.default_rng(seed).uniform(60.0, 240.0)))
             folder = run(args.out, f"{kind}-{seed}", seed, f"[[faults]]\n{table}\nstart = {onset}")
-            alarms = [a for a in watch(twin, folder, thresholds).alarms if a.time_s >= onset]
+            watched = watch(twin, folder, thresholds)
+            alarms = [a for a in watched.alarms if a.time_s >= onset]
             if alarms:
                 delays.append(alarms[0].time_s - onset)
+                if kind == "stuck_encoder":
+                    observable.append(alarms[0].time_s - seen_from(watched.measured, onset, thresholds))
                 right += (alarms[0].kind, alarms[0].axis) == (kind, axis)
                 sizes.append(f"{alarms[0].size:.3g} {alarms[0].unit}")
         median = f"{statistics.median(delays):.0f}" if delays else "none"
         missed = args.seeds - len(delays)
         print(f"| {label} | {args.seeds} | {median}{f' ({missed} missed)' if missed else ''} | <= {target:g} | "
               f"{100 * right / args.seeds:.0f} % | {', '.join(sizes[:3])} |")
+
+    if observable:
+        print(f"\nstuck encoder, from when the slew had moved {STUCK_COUNTS} counts after the fault's start: "
+              f"median {statistics.median(observable):.1f} s, largest {max(observable):.1f} s (target <= 2)")
 
     runs = max(1, round(args.fault_free_hours * 3600 / LOG_S))
     false_alarms, watched_s, took = 0, 0.0, 0.0

@@ -3,6 +3,8 @@ export and the charts, so that a run has one colour everywhere."""
 
 from __future__ import annotations
 
+from bwr_twin.drawing.geometry import rgb  # noqa: F401  (the replay's modules take it from here)
+
 DESIRED_COLOUR = (60, 120, 230)
 ACTUAL_COLOUR = (235, 95, 20)  # the first run's trail
 GHOST_COLOUR = (90, 110, 255)  # the second run's
@@ -25,11 +27,6 @@ PATH_STEP = 1.0  # s between drawn points of a path or trail
 LINE_WIDTH = 2.5  # px, a desired path; a trail is twice as wide
 MARKER_SCALE = 0.01  # marker radius as a share of the path's extent
 LABEL_MERGE = 4.0  # via points closer than this many marker radii share one label
-
-
-def rgb(rgba: tuple[float, ...]) -> tuple[int, int, int]:
-    """An MJCF colour (0-1) as 0-255 integers."""
-    return tuple(round(255 * c) for c in rgba[:3])
 
 
 def run_colour(k: int) -> tuple[int, int, int]:

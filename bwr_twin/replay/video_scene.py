@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from bwr_twin.drawing.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.errors import BwrError
 from bwr_twin.model.spec import STOCKPILE, Edits, compile_model, set_stockpile_colours, set_stockpile_heights
 from bwr_twin.pile.surface import Surface
-from bwr_twin.replay.geometry import VISUAL_GROUP, BodyPoser, visual_geoms
 from bwr_twin.replay.pile import CUT_COLOUR, CUT_SHOWN, ORE_COLOUR, DugHeights, display_step
 from bwr_twin.replay.recording import Plan, Recording
 from bwr_twin.replay.scenery import frame_view, painted_heights, stockpile

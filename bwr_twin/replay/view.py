@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
-from bwr_twin.replay.geometry import BodyPoser, visual_geoms
+from bwr_twin.drawing.geometry import BodyPoser, visual_geoms
 from bwr_twin.replay.grade_scale import GradeScale
 from bwr_twin.replay.machine_view import MachineView, Paint, segments
 from bwr_twin.replay.pile import PileView

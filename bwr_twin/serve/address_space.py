@@ -19,29 +19,11 @@ from datetime import datetime, timezone
 from asyncua import Node, Server, ua
 
 from bwr_twin.model.machine import AXES
-from bwr_twin.serve import nodes
-from bwr_twin.serve.methods import checked
+from bwr_twin.opcua import nodes
+from bwr_twin.opcua.analog import UNITS, add_analog_item, eu_information  # noqa: F401  (UNITS: the contract's)
+from bwr_twin.opcua.methods import checked
 
 NAMESPACE_URI = "urn:bwr_twin:reclaimer"
-UNECE_URI = "http://www.opcfoundation.org/UA/units/un/cefact"  # OPC UA Part 8: UNECE Recommendation 20 codes
-
-# Unit symbol -> (UNECE common code, description).
-UNITS = {
-    "m": ("MTR", "metre"),
-    "rad": ("C81", "radian"),
-    "m/s": ("MTS", "metre per second"),
-    "rad/s": ("2A", "radian per second"),
-    "m/s²": ("MSK", "metre per second squared"),
-    "rad/s²": ("2B", "radian per second squared"),
-    "N": ("NEW", "newton"),
-    "N·m": ("NU", "newton metre"),
-    "s": ("SEC", "second"),
-    "t/h": ("E18", "tonne per hour"),
-    "A": ("AMP", "ampere"),
-}
-# OPC UA Part 8's variable types of a Double with a physical meaning: with its unit (i=17497,
-# "AnalogUnitItemType" in some texts) or without (AnalogItemType); both carry EURange.
-ANALOG_UNIT_TYPE, ANALOG_ITEM_TYPE = ua.ObjectIds.AnalogUnitType, ua.ObjectIds.AnalogItemType
 LINEAR, ANGULAR = "linear", "angular"
 AXIS_KIND = {"travel": LINEAR, "slew": ANGULAR, "luff": ANGULAR}
 
@@ -126,16 +108,6 @@ def unit_of(variable: Variable, axis: str | None = None) -> str | None:
     return variable.unit
 
 
-def eu_information(symbol: str) -> ua.EUInformation:
-    """EUInformation of a unit symbol of UNITS, UnitId from its UNECE code (OPC UA Part 8, 5.6.3)."""
-    code, description = UNITS[symbol]
-    unit_id = 0
-    for character in code:
-        unit_id = unit_id << 8 | ord(character)
-    return ua.EUInformation(NamespaceUri=UNECE_URI, UnitId=unit_id, DisplayName=ua.LocalizedText(symbol),
-                            Description=ua.LocalizedText(description))
-
-
 def node_path(variable: str, axis: str | None = None) -> str:
     """'Reclaimer/Travel/DriveSetpoint': a node's browse path under Objects, as the docs give it."""
     return f"Reclaimer/{axis_name(axis)}/{variable}" if axis else f"Reclaimer/{variable}"
@@ -207,24 +179,21 @@ class AddressSpace:
         name = ua.QualifiedName(variable.name, ns)
         initial = _initial(variable.variant) if value is None else value
         if variable.variant == D:
-            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(initial, D),
-                                            ANALOG_UNIT_TYPE if unit else ANALOG_ITEM_TYPE, length=length)
-        elif length is not None:
-            node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name, ua.Variant(initial, variable.variant),
-                                            ua.ObjectIds.BaseDataVariableType, length=length)
+            node = await add_analog_item(parent, ua.NodeId(node_id, ns), name, unit, eu_range, value=initial,
+                                         length=length)
         else:
-            node = await parent.add_variable(ua.NodeId(node_id, ns), name, initial, variable.variant)
+            if length is not None:
+                node = await nodes.add_variable(parent, ua.NodeId(node_id, ns), name,
+                                                ua.Variant(initial, variable.variant),
+                                                ua.ObjectIds.BaseDataVariableType, length=length)
+            else:
+                node = await parent.add_variable(ua.NodeId(node_id, ns), name, initial, variable.variant)
+            if unit:  # the standard property, its browse name in namespace 0
+                await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns),
+                                        ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
+                                        ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
         meaning = f"{variable.meaning}, {unit}" if unit else variable.meaning
-        description = ua.DataValue(ua.Variant(ua.LocalizedText(meaning)))
-        await node.write_attribute(ua.AttributeIds.Description, description)
-        if unit:  # the standard properties, browse names in namespace 0
-            await node.add_property(ua.NodeId(f"{node_id}.EngineeringUnits", ns),
-                                    ua.QualifiedName("EngineeringUnits", 0), eu_information(unit),
-                                    ua.VariantType.ExtensionObject, ua.NodeId(ua.ObjectIds.EUInformation))
-        if variable.variant == D:
-            low, high = eu_range
-            await nodes.add_property(node, ua.NodeId(f"{node_id}.EURange", ns), ua.QualifiedName("EURange", 0),
-                                     ua.Variant(ua.Range(Low=low, High=high)), data_type=ua.ObjectIds.Range)
+        await node.write_attribute(ua.AttributeIds.Description, ua.DataValue(ua.Variant(ua.LocalizedText(meaning))))
         if variable.writable:
             await node.set_writable()
         return node

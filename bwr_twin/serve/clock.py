@@ -22,10 +22,10 @@ from collections.abc import Callable
 import numpy as np
 from asyncua import ua
 
+from bwr_twin.opcua.methods import refuse_argument, status
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME
 from bwr_twin.serve.address_space import AddressSpace
 from bwr_twin.serve.machinery import item_state
-from bwr_twin.serve.methods import refuse_argument, status
 from bwr_twin.sim.twin import Twin
 
 YIELD_AFTER = 0.002  # s of computing in one go before the event loop gets a turn (real time: a pause as long)
@@ -178,7 +178,7 @@ class Clock:
 
     async def step(self, parent, periods: ua.Variant):
         """Step(n): n control periods under the setpoints as they are now; SimTime after them."""
-        n = periods.Value  # a UInt32 (bwr_twin.serve.methods checked its type)
+        n = periods.Value  # a UInt32 (bwr_twin.opcua.methods checked its type)
         if n < 1:
             return refuse_argument([ua.StatusCodes.BadOutOfRange])
         if self.running:

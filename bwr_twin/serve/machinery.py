@@ -17,7 +17,8 @@ from urllib.parse import quote
 from asyncua import Node, ua
 
 from bwr_twin.model.machine import Machine
-from bwr_twin.serve import LOCKSTEP, nodes
+from bwr_twin.opcua import nodes
+from bwr_twin.serve import LOCKSTEP
 from bwr_twin.serve.address_space import AddressSpace
 
 LT, STRING = ua.VariantType.LocalizedText, ua.VariantType.String

@@ -23,7 +23,7 @@ from datetime import datetime, timezone
 from asyncua import Node, ua
 
 from bwr_twin.config.faults import FaultSection
-from bwr_twin.serve import nodes
+from bwr_twin.opcua import nodes
 from bwr_twin.serve.address_space import AddressSpace, B, D, U, Variable, data_value
 from bwr_twin.sim.ranges import scanner_ranges
 from bwr_twin.sim.twin import LatestScan, Twin

@@ -3,6 +3,8 @@
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --baseline FAULT_FREE_RUN_DIR --out DIR
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --thresholds thresholds.json --out DIR
     python -m bwr_twin.shadow --source opc.tcp://HOST:PORT --tags tags.toml --model MJCF --thresholds FILE
+    ... --serve opc.tcp://127.0.0.1:4841     # and serve the residuals, health and alarms over OPC UA
+    ... --view 8080                           # and show them in the browser, http://127.0.0.1:8080
 
 RUN_DIR is a run directory (or its timeseries.csv) of the machine being watched: its encoders'
 positions, its drives' speed feedback and their forces (docs/shadow.md). The thresholds are
@@ -12,12 +14,19 @@ learned from a fault-free log of the same machine (--baseline), for --false-alar
 position, speed and drift residuals per axis) and thresholds.json. DIR appears only when
 complete. Live (--source), the shadow reads the tags a tag map names (docs/shadow.md) every
 --poll s and prints its events as JSON lines as they happen (the source lost and back, gaps,
-alarms), until Ctrl-C or --duration s. Bad input exits with status 2 and one line.
+alarms), until Ctrl-C or --duration s. With --serve URL the shadow is an OPC UA server too
+(bwr_twin.shadow.publish, docs/shadow.md), and with --view PORT a page in the browser
+(bwr_twin.shadow.view): live, each block's residuals, the health and the alarms as they come;
+over a log, what the shadow made of it, served until Ctrl-C or --duration s. Bad input exits
+with status 2 and one line.
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import contextlib
+import math
 import sys
 import time
 from pathlib import Path
@@ -35,7 +44,12 @@ def main(argv: list[str] | None = None) -> int:
     watched.add_argument("--source", help="the machine's OPC UA server, opc.tcp://HOST:PORT, to watch live")
     parser.add_argument("--tags", type=Path, help="live: the tag map (tags.toml)")
     parser.add_argument("--poll", type=float, default=0.01, help="live: s between reads (default 0.01)")
-    parser.add_argument("--duration", type=float, help="live: stop after this many s (default: until Ctrl-C)")
+    parser.add_argument("--duration", type=float, help="live, or a log with --serve: stop after this many s "
+                        "(default: until Ctrl-C)")
+    parser.add_argument("--serve", metavar="URL", help="serve the residuals, health and alarms over OPC UA at "
+                        "opc.tcp://HOST:PORT")
+    parser.add_argument("--view", metavar="PORT", type=int, help="show the machine, its twin's ghost, the residuals "
+                        "and the alarms at http://127.0.0.1:PORT (0: a free port)")
     parser.add_argument("--model", required=True, type=Path, help="the machine's MJCF the twin runs")
     learned = parser.add_mutually_exclusive_group(required=True)
     learned.add_argument("--baseline", type=Path, help="a fault-free run directory of the machine: learn the "
@@ -55,9 +69,11 @@ def _run(args: argparse.Namespace) -> int:
         return _live(args)
     if args.out is None:
         raise BwrError("--out is needed to watch a --log: the folder its events and residuals go to")
-    live_only = [name for name, value in (("--tags", args.tags), ("--duration", args.duration)) if value is not None]
-    if live_only:
-        raise BwrError(f"{live_only[0]} is for a live --source, not a --log")
+    if args.tags is not None:
+        raise BwrError("--tags is for a live --source, not a --log")
+    if args.duration is not None and args.serve is None and args.view is None:
+        raise BwrError("--duration is for a live --source, or a --log with --serve or --view")
+    _check_serving(args)
     from bwr_twin.ownership import check_output
     from bwr_twin.results.rundir import staged_directory
     from bwr_twin.shadow.detect import Thresholds
@@ -87,11 +103,57 @@ def _run(args: argparse.Namespace) -> int:
     for alarm in watched.alarms:
         print(f"alarm: {alarm.describe()}")
     print(f"events in {args.out}/events.jsonl")
+    if args.serve is not None or args.view is not None:
+        asyncio.run(_show_log(args, twin, thresholds, watched))
     return 0
 
 
+def _check_serving(args: argparse.Namespace) -> None:
+    if args.serve is not None and not args.serve.startswith("opc.tcp://"):
+        raise BwrError(f"--serve must be an opc.tcp://HOST:PORT address, got {args.serve!r}")
+    if args.duration is not None and not args.duration > 0:
+        raise BwrError("--duration must be > 0 s")
+    if args.view is not None and not 0 <= args.view <= 65535:
+        raise BwrError(f"--view must be a TCP port, 0 to 65535, got {args.view}")
+
+
+@contextlib.asynccontextmanager
+async def _outputs(args: argparse.Namespace, twin, thresholds):
+    """The OPC UA server (--serve) and the view (--view) the shadow publishes to, started; each
+    said where it is; stopped on leaving."""
+    from bwr_twin.shadow.publish import ShadowServer, residual_ranges
+    from bwr_twin.shadow.view import ShadowView
+
+    outputs = []
+    try:
+        if args.serve is not None:
+            server = ShadowServer(args.serve, residual_ranges(twin.limits, twin.machine.rated_speed, thresholds))
+            await server.start()
+            outputs.append(server)
+            print(f"serving the shadow at {args.serve}", flush=True)
+        if args.view is not None:
+            view = ShadowView(twin.machine, port=args.view)
+            outputs.append(view)
+            print(f"view: {view.url}", flush=True)
+        yield outputs
+    finally:
+        for output in outputs:
+            await output.stop()
+
+
+async def _show_log(args: argparse.Namespace, twin, thresholds, watched) -> None:
+    """Publish what the shadow made of a log (every block's residuals, the pose at its end, the
+    health, the alarms) until --duration s have passed or Ctrl-C."""
+    async with _outputs(args, twin, thresholds) as outputs:
+        end = watched.measured.time.searchsorted(watched.blocks.end[-1]) if len(watched.blocks.start) else -1
+        for output in outputs:
+            await output.residuals(watched.blocks, watched.measured.q[end])
+            await output.verdict(watched.health, watched.alarms)
+        print("shown" + (f" for {args.duration:g} s" if args.duration else ": Ctrl-C stops"), flush=True)
+        await asyncio.sleep(args.duration if args.duration is not None else math.inf)
+
+
 def _live(args: argparse.Namespace) -> int:
-    import asyncio
     import json
 
     from bwr_twin.shadow.detect import Thresholds
@@ -106,8 +168,9 @@ def _live(args: argparse.Namespace) -> int:
         raise BwrError("--source needs --tags: the tag map naming the machine's variables (docs/shadow.md)")
     if not args.source.startswith("opc.tcp://"):
         raise BwrError(f"--source must be an opc.tcp://HOST:PORT address, got {args.source!r}")
-    if not args.poll > 0 or (args.duration is not None and not args.duration > 0):
-        raise BwrError("--poll and --duration must be > 0 s")
+    if not args.poll > 0:
+        raise BwrError("--poll must be > 0 s")
+    _check_serving(args)
     if not args.model.is_file():
         raise BwrError(f"{args.model}: MJCF file not found")
     twin = ShadowTwin(args.model)
@@ -119,7 +182,13 @@ def _live(args: argparse.Namespace) -> int:
         print(json.dumps(event), flush=True)
 
     shadow = LiveShadow(twin, thresholds, say)
-    asyncio.run(run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration))
+
+    async def live() -> None:
+        async with _outputs(args, twin, thresholds) as outputs:
+            await run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration,
+                           outputs=outputs)
+
+    asyncio.run(live())
     return 0
 
 

@@ -13,9 +13,10 @@ is isolated to the hypothesis whose statistic is then the largest (the most like
 that best explains what the residuals did). Each class and axis is raised once, and a change
 that began before the last alarm is the fault that alarm named.
 
-A stuck encoder is decided without a test: the encoder read the same position for a whole
-block while the axis moved by more than STUCK_COUNTS counts of the encoder (off for an encoder
-the fault-free log never saw step: its count is unknown).
+A stuck encoder is decided without a test: its reading has not changed since the axis, by its
+drive's speed feedback, moved more than STUCK_COUNTS counts of the encoder (off for an encoder
+the fault-free log never saw step: its count is unknown). The distance is counted from the
+reading's last change, within a block and across the blocks it stays unchanged through.
 
 Thresholds: a threshold for `per_hour` false alarms per hour makes one test of the WINDOW onsets
 each block as unlikely to exceed it as the hours ask (Bonferroni over the tests of an hour, on
@@ -38,6 +39,7 @@ from bwr_twin.errors import BwrError
 from bwr_twin.shadow.twin import BLOCK, UNIT_MASS, Blocks
 
 AXES = ("travel", "slew", "luff")
+SOURCES = (*AXES, "wheel end")  # what an alarm names: an axis, or the wheel end (a mass change)
 UNITS = ("m", "rad", "rad")
 WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
@@ -91,7 +93,8 @@ class Thresholds:
 class Alarm:
     """A fault found: its class and axis ("wheel end" for a mass change), the time it was raised,
     its estimated onset and size (`size` in `unit`; a stuck encoder's, how far the axis moved
-    unseen in its first block), and the statistic against its threshold."""
+    unseen when it was raised), and the statistic against its threshold (a stuck encoder's: that
+    distance against STUCK_COUNTS counts)."""
 
     kind: str
     axis: str
@@ -144,8 +147,9 @@ def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray
     return r - t.bias.get(_name(h), 0.0) * s, s
 
 
-def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The GLR statistic, its onset (block index) and size after each block.
+def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool, start: int = 0) -> tuple[np.ndarray, np.ndarray,
+                                                                                   np.ndarray]:
+    """The GLR statistic, its onset (block index) and size after each block from block `start` on.
 
     r, s: (blocks x per,) whitened residuals and signatures, `per` entries a block. For block n,
     onsets m = n - WINDOW + 1 .. n: g = max (sum_{m..n} r s)^2 / sum s^2, over sizes > 0 if `sided`."""
@@ -153,8 +157,8 @@ def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool) -> tuple[np.ndarray
     ss = (s * s).reshape(-1, per).sum(axis=1)
     n = len(rs)
     crs, css = np.concatenate([[0.0], np.cumsum(rs)]), np.concatenate([[0.0], np.cumsum(ss)])
-    g, onset, size = np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n)
-    for k in range(n):
+    g, onset, size = np.zeros(n - start), np.zeros(n - start, dtype=np.int64), np.zeros(n - start)
+    for k in range(start, n):
         m = np.arange(max(0, k - WINDOW + 1), k + 1)
         num, den = crs[k + 1] - crs[m], css[k + 1] - css[m]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -163,7 +167,7 @@ def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool) -> tuple[np.ndarray
         if sided:
             stat = np.where(theta > 0, stat, 0.0)
         best = int(np.argmax(stat))
-        g[k], onset[k], size[k] = stat[best], m[best], theta[best]
+        g[k - start], onset[k - start], size[k - start] = stat[best], m[best], theta[best]
     return g, onset, size
 
 
@@ -206,17 +210,31 @@ def _sigma(values: np.ndarray, floor: np.ndarray | None = None) -> list[float]:
 
 def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     """The alarms over the log's blocks, each class and axis raised once, in time order."""
+    return assess(blocks, t)[0]
+
+
+def assess(blocks: Blocks, t: Thresholds, known: list | None = None) -> tuple[list[Alarm], dict[str, float]]:
+    """The alarms over the log's blocks (as `detect`) and the health of each of SOURCES after the
+    newest block, in %: 100 less 100 times the largest statistic of its hypotheses against its
+    threshold, 0 at a threshold and below; 0 once an alarm named it.
+
+    `known`: a list kept between calls over a growing series of blocks (live), which holds the
+    statistics of the blocks seen so far, so that each call computes only the new blocks'."""
     if not len(blocks.start):
-        return []
+        return [], dict.fromkeys(SOURCES, 100.0)
     alarms = _stuck(blocks, t)
     # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
     blind = {AXES.index(a.axis): a.time_s for a in alarms}
     ratios, found = [], []
-    for h in HYPOTHESES:
+    for i, h in enumerate(HYPOTHESES):
         r, s = _whitened(blocks, t, h)
-        g, onset, size = glr(r, s, 3 if h.axis < 0 else 1, h.sided)
+        before = known[i] if known else (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
+        new = glr(r, s, 3 if h.axis < 0 else 1, h.sided, start=len(before[0]))
+        g, onset, size = (np.concatenate([a, b]) for a, b in zip(before, new))
         ratios.append(g / t.thresholds[_name(h)])
         found.append((g, onset, size))
+    if known is not None:
+        known[:] = found
     ratios = np.array(ratios)  # (hypotheses, blocks)
     stats = np.array([g for g, _, _ in found])
     raised_at = -math.inf  # s: the last alarm's time; a change that began before it is the fault it named
@@ -231,7 +249,11 @@ def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
             raised_at = float(blocks.end[k])
             raised.add(_name(h))
             alarms.append(_alarm(blocks, t, h, k, int(onset), float(size), float(g)))
-    return sorted(alarms, key=lambda a: a.time_s)
+    health = {}
+    for j, source in enumerate(SOURCES):
+        worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
+        health[source] = 0.0 if any(a.axis == source for a in alarms) else 100.0 * max(0.0, 1.0 - float(worst))
+    return sorted(alarms, key=lambda a: a.time_s), health
 
 
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:
@@ -247,14 +269,38 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, si
 
 
 def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
+    """An encoder whose reading has not changed while the axis moved by more than STUCK_COUNTS of
+    its counts: counted from its reading's last change (Blocks.unseen), across blocks while it
+    stays unchanged, so a stuck encoder is seen as soon as the axis has moved that far, not a
+    whole still block later."""
     alarms = []
     for j in range(3):
         if t.counts[j] is None:  # an encoder never seen to step: how far is "moved" unknown
             continue
-        stuck = blocks.still[:, j] & (np.abs(blocks.moved[:, j]) > STUCK_COUNTS * t.counts[j])
+        limit = STUCK_COUNTS * t.counts[j]
+        if blocks.unseen is None:  # without it, a whole block still
+            run, first = blocks.moved[:, j] * blocks.still[:, j], np.arange(len(blocks.start))
+        else:
+            joined = np.concatenate([[False], blocks.start[1:] <= blocks.end[:-1] + 1e-9])  # no gap before
+            run, first = _runs(blocks.unseen[:, j], blocks.still[:, j] & joined)
+        stuck = np.abs(run) > limit
         if stuck.any():
             k = int(np.argmax(stuck))
-            alarms.append(Alarm("stuck_encoder", AXES[j], float(blocks.end[k]), float(blocks.start[k]),
-                                float(blocks.moved[k, j] * (1.0 if j == 0 else math.degrees(1.0))),
-                                ("m", "deg", "deg")[j], 1.0, 1.0))
+            alarms.append(Alarm("stuck_encoder", AXES[j], float(blocks.end[k]), float(blocks.start[first[k]]),
+                                float(run[k] * (1.0 if j == 0 else math.degrees(1.0))),
+                                ("m", "deg", "deg")[j], float(abs(run[k]) / limit), 1.0))
     return alarms
+
+
+def _runs(unseen: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(blocks,) how far the axis moved unseen by its encoder up to each block's end, summed over
+    the blocks its reading stayed unchanged through (`still`: unchanged through the block, and
+    no gap before it); and the block each such run began in."""
+    run, first = np.empty_like(unseen), np.empty(len(unseen), dtype=np.int64)
+    total, began = 0.0, 0
+    for k, (moved, unchanged) in enumerate(zip(unseen, still)):
+        if not unchanged:
+            total, began = 0.0, k
+        total += moved
+        run[k], first[k] = total, began
+    return run, first

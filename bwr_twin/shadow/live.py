@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 from asyncua import Client, ua
 
 from bwr_twin.errors import BwrError
-from bwr_twin.shadow.detect import Alarm, Thresholds, detect
+from bwr_twin.shadow.detect import SOURCES, Alarm, Thresholds, assess
 from bwr_twin.shadow.measured import GAP, Measured
 from bwr_twin.shadow.tags import Tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
@@ -91,6 +93,20 @@ async def _check_tag(node, node_id: str, what: str, unit: str, tags: Tags) -> No
         raise BwrError(f"{tags.path}: tag {what} = {node_id!r} is in {shown}, the shadow needs {unit}")
 
 
+class Output(Protocol):
+    """Where the live shadow publishes: its OPC UA server (bwr_twin.shadow.publish), its view
+    (bwr_twin.shadow.view)."""
+
+    async def residuals(self, blocks: Blocks, measured_q: np.ndarray, arrived: float | None = None) -> None:
+        """The blocks a sample completed; the encoders at the newest one's end; when the sample came."""
+
+    async def verdict(self, health: dict[str, float], alarms: list[Alarm]) -> None:
+        """Each source's health and every alarm so far, after the detectors ran."""
+
+    async def stop(self) -> None:
+        """Stop serving."""
+
+
 class LiveShadow:
     """The shadow over a source's samples as they arrive: blocks, gaps and alarms so far.
 
@@ -104,6 +120,9 @@ class LiveShadow:
         self._done = 0  # the first sample of the block not yet handed to the twin
         self._blocks: list[Blocks] = []
         self.alarms: list[Alarm] = []
+        self.health = dict.fromkeys(SOURCES, 100.0)  # % after the newest block (bwr_twin.shadow.detect.assess)
+        self._statistics: list = []  # the detectors' statistics of the blocks so far, for these thresholds
+        self._statistics_for: Thresholds | None = None
         self.gaps: list[tuple[float, float]] = []
 
     @property
@@ -111,12 +130,17 @@ class LiveShadow:
         """s: the newest sample's time; 0 before the first."""
         return float(self._samples[-1][0]) if self._samples else 0.0
 
-    def add(self, sample: np.ndarray) -> None:
-        """One sample (10,) as Source.read gives it; one whose time has not moved on adds nothing."""
+    def add(self, sample: np.ndarray, detect: bool = True) -> bool:
+        """One sample (10,) as Source.read gives it; one whose time has not moved on adds nothing.
+        True if it completed a block, whose detectors have run unless `detect` is False (then
+        call `detect()`)."""
         if self._samples and sample[0] <= self._samples[-1][0]:
-            return
+            return False
         self._samples.append(sample)
-        self._advance()
+        made = self._advance()
+        if made and detect:
+            self.detect()
+        return made
 
     def measured(self, start: int = 0) -> Measured:
         """The samples from `start` on but the newest, whose force the next sample reads: a force
@@ -126,7 +150,7 @@ class LiveShadow:
         period = float(np.median(np.diff(rows[:, 0]))) if len(rows) > 1 else 1.0
         return Measured(rows[:-1, 0], axes[:-1, :, 0], axes[:-1, :, 1], axes[1:, :, 2], period, axes[:-1, :, 1])
 
-    def _advance(self) -> None:
+    def _advance(self) -> bool:
         samples = self._samples
         if len(samples) >= 3:
             steps = np.diff([s[0] for s in samples[-3:]])
@@ -136,42 +160,69 @@ class LiveShadow:
                 self._say({"event": "gap", "time_s": gap[0], "from_s": gap[0], "to_s": gap[1],
                            "meaning": "no samples: nothing is concluded over it"})
                 self._done = len(samples) - 1
-                return
+                return False
         tail = self.measured(self._done) if len(samples) - self._done > 3 else None
         if tail is None:
-            return
+            return False
         blocks = self._twin.blocks(tail)
         if not len(blocks.start):
-            return
+            return False
         self._blocks.append(blocks)
         self._done += int(np.searchsorted(tail.time, blocks.end[-1]))
-        if self.thresholds is not None:
-            self._detect()
+        return True
 
-    def _detect(self) -> None:
-        blocks = self.blocks()
+    def detect(self) -> None:
+        """Run the detectors over the blocks so far (with thresholds set): say each new alarm,
+        and update `health`."""
+        if self.thresholds is None or not self._blocks:
+            return
+        if self._statistics_for is not self.thresholds:  # thresholds set or changed: start afresh
+            self._statistics, self._statistics_for = [], self.thresholds
+        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics)
         known = {(a.kind, a.axis) for a in self.alarms}
-        for alarm in detect(blocks, self.thresholds):
+        for alarm in alarms:
             if (alarm.kind, alarm.axis) not in known:
                 self.alarms.append(alarm)
                 self._say(alarm.event())
+
+    def newest(self) -> Blocks:
+        """The blocks the newest sample completed."""
+        return self._blocks[-1]
+
+    def position(self, t: float) -> np.ndarray:
+        """(3,) the encoders' reading at the sample of time `t` (m, rad, rad)."""
+        for sample in reversed(self._samples):
+            if sample[0] <= t:
+                return sample[1::3].copy()
+        return self._samples[0][1::3].copy()
 
     def blocks(self) -> Blocks:
         """Every block so far."""
         return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
 
 
-async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> bool:
+async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None],
+                    outputs: Sequence[Output] = ()) -> bool:
     """Read one sample into the shadow; on a dropped source say so, reconnect (every RETRY s until
-    it answers) and say when it is back. True if a sample was read."""
+    it answers) and say when it is back. True if a sample was read. A block's residuals go to
+    the `outputs` as soon as the twin has them, then its detectors run, then the health and the
+    alarms go to them."""
     try:
-        shadow.add(await source.read())
-        return True
+        sample = await source.read()
     except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError, AttributeError):
         say({"event": "source_lost", "time_s": shadow.time, "source": source.url})
         await source.close()
         await _reconnect(source, shadow, say)
         return False
+    arrived = time.perf_counter()
+    if shadow.add(sample, detect=not outputs) and outputs:
+        newest = shadow.newest()
+        for output in outputs:
+            await output.residuals(newest, shadow.position(float(newest.end[-1])), arrived)
+        shadow.detect()
+        for output in outputs:
+            await output.verdict(shadow.health, shadow.alarms)
+    return True
 
 
 async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> None:
@@ -186,9 +237,10 @@ async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], N
 
 
 async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, poll: float,
-                   duration: float | None) -> None:
-    """Watch `source` every `poll` s for `duration` s (None: until cancelled); a source that cannot
-    be reached at the start is said so and tried again every RETRY s, as one that drops later."""
+                   duration: float | None, outputs: Sequence[Output] = ()) -> None:
+    """Watch `source` every `poll` s for `duration` s (None: until cancelled), publishing to
+    `outputs`; a source that cannot be reached at the start is said so and tried again
+    every RETRY s, as one that drops later."""
     async def watch() -> None:
         try:
             await source.connect()
@@ -196,7 +248,7 @@ async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], Non
             say({"event": "source_lost", "time_s": 0.0, "source": source.url})
             await _reconnect(source, shadow, say)
         while True:
-            await poll_once(source, shadow, say)
+            await poll_once(source, shadow, say, outputs)
             await asyncio.sleep(poll)
 
     try:

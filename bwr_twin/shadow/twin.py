@@ -58,7 +58,9 @@ class Blocks:
     speed over the block less the drives' speed feedback's (m/s, rad/s; 0 without feedback);
     still: whether the encoder read the same position through the block; moved: how far the
     axis moved over it by the speed feedback (by the twin without it) (m, rad);
-    friction, derate, mass: the signatures of a unit friction rise, derate and mass change.
+    friction, derate, mass: the signatures of a unit friction rise, derate and mass change;
+    unseen: how far the speed feedback moved the axis since the encoder's reading last changed
+    in the block (over the whole block if it did not change) (m, rad; None: not known).
     """
 
     start: np.ndarray
@@ -72,6 +74,7 @@ class Blocks:
     friction: np.ndarray
     derate: np.ndarray
     mass: np.ndarray
+    unseen: np.ndarray | None = None
 
 
 class ShadowTwin:
@@ -80,7 +83,7 @@ class ShadowTwin:
     def __init__(self, mjcf: Path):
         machine = Machine(mjcf)
         self.machine = machine
-        self.model_name = machine.model.names[: machine.model.names.index(b"\0")].decode()  # <mujoco model=...>
+        self.model_name = machine.name  # <mujoco model=...>
         self.limits = machine.drive_limits  # (3, 2) N, N m
         self._model = machine.physics_model()
         self._data = mujoco.MjData(self._model)
@@ -108,7 +111,7 @@ class ShadowTwin:
         if not rows:
             empty = np.zeros((0, 3))
             return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, np.zeros((0, 3), bool), empty,
-                          empty, empty, empty)
+                          empty, empty, empty, empty)
         columns = list(zip(*rows))
         return Blocks(*(np.array(c) for c in columns))
 
@@ -125,14 +128,22 @@ class ShadowTwin:
         q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0])
         span = m.time[i1] - m.time[i0]
         if m.speed is not None:
-            moved = (m.speed[i0:i1] * dt).sum(axis=0)
+            steps = m.speed[i0:i1] * dt
+            moved = steps.sum(axis=0)
             drift = (m.q[i1] - m.q[i0] - moved) / span
+            # The motion after the reading's last change: sample i's step ends at i + 1, so the steps
+            # from the last sample whose reading differs from the one before it on.
+            changed = np.diff(m.q[i0 : i1 + 1], axis=0) != 0  # (i1 - i0, 3): sample i0 + n + 1 differs from i0 + n
+            last = np.where(changed.any(axis=0), i1 - i0 - 1 - np.argmax(changed[::-1], axis=0), -1)
+            after = np.arange(i1 - i0)[:, None] > last[None, :]
+            unseen = (steps * after).sum(axis=0)
         else:
             moved, drift = q_end - m.q[i0], np.zeros(3)
+            unseen = np.where(np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved, 0.0)
         return (m.time[i0], m.time[i1], ((needed - force) * weights).sum(axis=0), m.q[i1] - q_end,
                 qd[i1] - qd_end, drift, np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved,
                 -(friction_force * weights).sum(axis=0), -(force * weights).sum(axis=0),
-                -((heavier - nominal) * weights).sum(axis=0))
+                -((heavier - nominal) * weights).sum(axis=0), unseen)
 
     def _inverse_of(self, which: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         model, data = self._inverse[which], self._inverse_data[which]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bwr_twin.shadow.detect import AXES, Alarm, Thresholds, detect, learn
+from bwr_twin.shadow.detect import AXES, Alarm, Thresholds, assess, learn
 from bwr_twin.shadow.measured import Measured, encoder_counts, read_measured
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
@@ -20,12 +20,14 @@ _RESIDUALS = (("force", ("N", "Nm")), ("position", ("m", "rad")), ("speed", ("m/
 
 @dataclass(frozen=True)
 class Watched:
-    """What the shadow made of a log: its samples, blocks, gaps and alarms."""
+    """What the shadow made of a log: its samples, blocks, gaps and alarms, and the health of
+    each axis and the wheel end at its end (%, bwr_twin.shadow.detect.assess)."""
 
     measured: Measured
     blocks: Blocks
     gaps: list[tuple[float, float]]
     alarms: list[Alarm]
+    health: dict[str, float]
 
     def events(self) -> list[dict]:
         """The log's events in time order, as JSON lines hold them."""
@@ -45,7 +47,8 @@ def watch(twin: ShadowTwin, log: Path, thresholds: Thresholds) -> Watched:
     """The shadow over the log at `log` (a run directory or its timeseries.csv)."""
     measured = read_measured(log, twin.limits)
     blocks = twin.blocks(measured)
-    return Watched(measured, blocks, measured.gaps(), detect(blocks, thresholds))
+    alarms, health = assess(blocks, thresholds)
+    return Watched(measured, blocks, measured.gaps(), alarms, health)
 
 
 def write_outputs(folder: Path, watched: Watched, thresholds: Thresholds) -> None:

@@ -51,6 +51,11 @@ class VisualGeom:
     faces: np.ndarray
 
 
+def rgb(rgba: tuple[float, ...]) -> tuple[int, int, int]:
+    """An MJCF colour (0-1) as 0-255 integers."""
+    return tuple(round(255 * c) for c in rgba[:3])
+
+
 def body_name(model: mujoco.MjModel, body: int) -> str:
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
 
