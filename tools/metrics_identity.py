@@ -85,16 +85,17 @@ def main() -> int:
     for name, then in before.items():  # digests written before paths were made canonical
         then["metrics"] = canonical(json.dumps(then["metrics"]))
         then["sha256"] = hashlib.sha256(json.dumps(then["metrics"], sort_keys=True).encode()).hexdigest()
-    changed = 0
+    changed, compared = 0, 0
     for name, now in found.items():
         if name not in before:
-            print(f"{name}: not in {args.against}")
+            print(f"{name}: not in {args.against}, new")
             continue
+        compared += 1
         if before[name]["sha256"] != now["sha256"]:
             changed += 1
             keys = differences(before[name]["metrics"], now["metrics"])
             print(f"{name}: differs at {len(keys)} keys: " + "; ".join(keys[:6]))
-    print(f"{len(found) - changed} of {len(found)} scenes' metrics.json identical")
+    print(f"{compared - changed} of {compared} scenes' metrics.json identical ({len(found) - compared} new)")
     return 1 if changed else 0
 
 
