@@ -73,25 +73,17 @@ def _plc(args) -> int:
 
 def _fmu(args) -> int:
     from bwr_twin.config.scene import load_scene
-    from bwr_twin.errors import SceneError
-    from bwr_twin.export.native_fmu import export_native_fmu, native_obstacle
+    from bwr_twin.export.scene_fmu import export_scene_fmu
     from bwr_twin.shipped import find_scene
     from bwr_twin.sim.budget import check_scenes
 
     scene = load_scene(find_scene(args.scene))
     check_scenes([scene], where=scene.path, out_dir=args.out.parent, force=args.force)  # the run the FMU will make
-    obstacle = native_obstacle(scene)
+    out, obstacle = export_scene_fmu(scene, args.out, fmi=args.fmi, overwrite=args.overwrite)
     if obstacle is None:
-        out = export_native_fmu(scene, args.out, fmi=args.fmi, overwrite=args.overwrite)
         print(f"native FMU, FMI {args.fmi}.0: C and MuJoCo's C library, no Python inside")
-        print(out)
-        return 0
-    if args.fmi == 3:
-        raise SceneError(f"{scene.path}: --fmi 3 is the native FMU's, but {obstacle} (FMI 2.0)")
-    from bwr_twin.export.fmu import export_fmu
-
-    out = export_fmu(scene, args.out, overwrite=args.overwrite)
-    print(f"Python FMU (pythonfmu), FMI 2.0: {obstacle}; it needs Python with bwr_twin where it runs (docs/fmu.md)")
+    else:
+        print(f"Python FMU (pythonfmu), FMI 2.0: {obstacle}; it needs Python with bwr_twin where it runs (docs/fmu.md)")
     print(out)
     return 0
 

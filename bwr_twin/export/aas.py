@@ -10,7 +10,7 @@ with the Eclipse BaSyx Python SDK, and the check of such a package.
             OperationalDataEndpoints  the OPC UA endpoint and its NodeSet2
         /aasx/files/...               the FMU (<model name>.fmu), MJCF, PLC files, NodeSet2, calibration report
 
-The FMU, the PLC package and the NodeSet2 are made by their own exporters (export_fmu,
+The FMU, the PLC package and the NodeSet2 are made by their own exporters (export_scene_fmu,
 export_plc, the server's address space through bwr_twin.serve.nodeset) and described from the
 files they wrote. The archive's comment is the twin's mark (bwr_twin.ownership): an existing
 .aasx is replaced only with --overwrite, if the twin wrote it and it is unchanged since.
@@ -52,8 +52,8 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     from bwr_twin.export.aas_fmu import read_fmu
     from bwr_twin.export.aas_machine import nameplate, nameplate_values, technical_data
     from bwr_twin.export.aas_models import control_software, endpoints, simulation_models
-    from bwr_twin.export.fmu import export_fmu
     from bwr_twin.export.plc import PROJECT, export_plc
+    from bwr_twin.export.scene_fmu import export_scene_fmu
     from bwr_twin.model.machine import Machine
     from bwr_twin.serve.address_space import NAMESPACE_URI
     from bwr_twin.serve.cli import DEFAULT_ENDPOINT
@@ -67,7 +67,7 @@ def export_aas(scene: Scene, out: Path, *, overwrite: bool = False, calibration:
     with tempfile.TemporaryDirectory(prefix="bwr_twin_aas_") as folder:
         work = Path(folder)
         plc = export_plc(scene, work / "plc")  # first: a controller it cannot export is refused before the FMU's build
-        fmu = export_fmu(scene, work / f"{machine.name}.fmu")
+        fmu, _ = export_scene_fmu(scene, work / f"{machine.name}.fmu")  # the FMU `export fmu` writes
         nodeset = work / "nodeset.xml"
         asyncio.run(_write_nodeset(scene, nodeset))
         files = aasx.DictSupplementaryFileContainer()
