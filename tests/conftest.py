@@ -1,6 +1,9 @@
 """Shared paths and fixtures."""
 
 import re
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -67,3 +70,43 @@ def any_machine(request):
     from bwr_twin import Machine
 
     return Machine(request.param)
+
+
+# Run by FMPy in a fresh environment: validate each FMU named, simulate 2 s, print what it gave.
+FMPY_CHECK = textwrap.dedent("""
+    import sys
+    from fmpy import simulate_fmu
+    from fmpy.validation import validate_fmu
+    for path in sys.argv[1:]:
+        problems = validate_fmu(path)
+        assert problems == [], problems
+        result = simulate_fmu(path, stop_time=2.0, output=["Travel.EncoderPosition", "PeriodsLeft"])
+        print(path, len(result), result["PeriodsLeft"][-1], result["Travel.EncoderPosition"][-1])
+""")
+
+
+@pytest.fixture(scope="session")
+def fmpy_alone(tmp_path_factory):
+    """FMPy installed alone in a fresh virtual environment, as an engineer's other PC has it (needs
+    PyPI; pip's cache keeps a second run offline). Called with FMU paths, it validates each and
+    simulates 2 s in that environment, and returns a row per FMU: (samples, PeriodsLeft at the
+    end, Travel.EncoderPosition at the end)."""
+    folder = tmp_path_factory.mktemp("fmpy_alone")
+    venv = folder / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    python = venv / "bin" / "python"
+    pip = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "fmpy"],
+                         capture_output=True, text=True, timeout=600, check=False)
+    assert pip.returncode == 0, f"pip install fmpy (needs PyPI): {pip.stderr[-2000:]}"
+    lacks = subprocess.run([str(python), "-c", "import bwr_twin"], capture_output=True, cwd=folder, check=False)
+    assert lacks.returncode != 0  # the project is not there
+
+    def check(*fmus: Path) -> list[tuple[int, float, float]]:
+        done = subprocess.run([str(python), "-c", FMPY_CHECK, *map(str, fmus)], capture_output=True, text=True,
+                              cwd=folder, timeout=300, check=False)
+        assert done.returncode == 0, done.stderr[-3000:]
+        rows = [line.rsplit(" ", 3)[1:] for line in done.stdout.splitlines()]
+        assert len(rows) == len(fmus), done.stdout
+        return [(int(samples), float(left), float(position)) for samples, left, position in rows]
+
+    return check

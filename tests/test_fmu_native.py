@@ -14,7 +14,6 @@ import os
 import shutil
 import subprocess
 import sys
-import textwrap
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree
@@ -207,35 +206,9 @@ def test_every_call_in_every_state_is_valid_or_refused_with_a_logged_reason(fmi,
     assert "is a fixed parameter" in results["fixed-parameter-after-init-refused"]
 
 
-FMPY_CHECK = textwrap.dedent("""
-    import sys
-    from fmpy import simulate_fmu
-    from fmpy.validation import validate_fmu
-    for path in sys.argv[1:]:
-        problems = validate_fmu(path)
-        assert problems == [], problems
-        result = simulate_fmu(path, stop_time=2.0, output=["Travel.EncoderPosition", "PeriodsLeft"])
-        print(path, len(result), result["PeriodsLeft"][-1], result["Travel.EncoderPosition"][-1])
-""")
-
-
-def test_fmpy_alone_in_a_fresh_environment_validates_and_simulates_both_versions(fmus, tmp_path):
-    """Needs PyPI (pip's cache keeps a second run offline): FMPy is all that is installed."""
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
-    python = venv / "bin" / "python"
-    pip = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "fmpy"],
-                         capture_output=True, text=True, timeout=600, check=False)
-    assert pip.returncode == 0, f"pip install fmpy (needs PyPI): {pip.stderr[-2000:]}"
-    lacks = subprocess.run([str(python), "-c", "import bwr_twin"], capture_output=True, cwd=tmp_path, check=False)
-    assert lacks.returncode != 0  # the project is not there
-    done = subprocess.run([str(python), "-c", FMPY_CHECK, *map(str, fmus.values())], capture_output=True, text=True,
-                          cwd=tmp_path, timeout=300, check=False)
-    assert done.returncode == 0, done.stderr[-3000:]
-    rows = [line.split() for line in done.stdout.splitlines()]
-    assert len(rows) == 2
-    for _, samples, periods_left, position in rows:
-        assert int(samples) == 201 and int(periods_left) == PATH_PERIODS - 200 and float(position) != 0.0
+def test_fmpy_alone_in_a_fresh_environment_validates_and_simulates_both_versions(fmus, fmpy_alone):
+    for samples, periods_left, position in fmpy_alone(*fmus.values()):
+        assert samples == 201 and periods_left == PATH_PERIODS - 200 and position != 0.0
 
 
 def test_the_cli_keeps_the_python_fmu_for_a_scene_c_does_not_carry_and_says_why(tmp_path):
