@@ -21,7 +21,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from asyncua import Client, ua
+from asyncua import Client
+from heavy_plc import HeavyPlc
 
 from bwr_twin.shadow.detect import learn
 from bwr_twin.shadow.live import LiveShadow, Source, poll_once
@@ -34,12 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "heavy_shadow.toml"
 MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 TAGS = ROOT / "examples" / "shadow_tags.toml"
-AXES = ("Travel", "Slew", "Luff")
 STEP, PERIOD = 10, 0.01  # control periods a PLC cycle, and their length in s
 SECONDS, LEARN = 300.0, 90.0  # s: the path, and its fault-free start the thresholds are learned on
-KP, KD, KI = (1193000.0, 705600000.0, 652700000.0), (2386000.0, 1411200000.0, 1305400000.0), \
-    (298250.0, 176400000.0, 163175000.0)  # pid_heavy.toml's gains
-HOLD = (0.0, 0.0, 11203667.5)  # N, N m, N m: the luff's holding torque
 FAULTS = ('kind = "friction_rise"\naxis = "slew"\npercent = 40.0', 'kind = "mass_change"\nmass = 10000.0',
           'kind = "drive_derate"\naxis = "travel"\npercent = 20.0')
 
@@ -48,24 +45,10 @@ async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
     shadow = LiveShadow(twin, None, lambda event: print(json.dumps(event), flush=True))
     source = Source(url, read_tags(TAGS, twin.model_name))
     await source.connect()
-    async with Client(url, timeout=60) as plc:
-        ns = await plc.get_namespace_index("urn:bwr_twin:reclaimer")
-
-        def node(name):
-            return plc.get_node(ua.NodeId(name, ns))
-
-        measured = [node(f"Reclaimer.{a}.{s}") for s in ("EncoderPosition", "EncoderVelocity") for a in AXES]
-        reference = [node(f"Reclaimer.{a}.{s}") for s in ("ReferencePosition", "ReferenceVelocity") for a in AXES]
-        setpoints = [node(f"Reclaimer.{a}.DriveSetpoint") for a in AXES]
-        reclaimer, step = node("Reclaimer"), node("Reclaimer.Step")
-        integral = np.zeros(3)
+    async with Client(url, timeout=60) as connection:
+        plc = await HeavyPlc.attach(connection, STEP, PERIOD)
         for cycle in range(round(SECONDS / (STEP * PERIOD))):
-            values = np.array(await plc.read_values(measured + reference))
-            error, rate = values[6:9] - values[0:3], values[9:12] - values[3:6]
-            integral += error * STEP * PERIOD
-            forces = np.array(HOLD) + np.array(KP) * error + np.array(KD) * rate + np.array(KI) * integral
-            await plc.write_values(setpoints, [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
-            await reclaimer.call_method(step, ua.Variant(STEP, ua.VariantType.UInt32))
+            await plc.cycle()
             await poll_once(source, shadow, print, [view])
             if shadow.thresholds is None and shadow.time >= LEARN:
                 shadow.thresholds = learn(shadow.blocks(), encoder_counts(shadow.measured()), 0.01)

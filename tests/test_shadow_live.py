@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from asyncua import ua
 from conftest import ROOT
+from heavy_plc import HeavyPlc
 from test_serve import CALL_TIMEOUT, AlarmEvents, Launched, client, environment, free_port
 
 from bwr_twin.errors import BwrError
@@ -28,14 +29,9 @@ from bwr_twin.shadow.twin import Blocks, ShadowTwin
 SCENE = ROOT / "scenes" / "heavy_shadow.toml"
 MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 TAGS = ROOT / "examples" / "shadow_tags.toml"
-AXES = ("Travel", "Slew", "Luff")
 STEP = 10  # control periods a PLC cycle: 0.1 s
 SECONDS = 40.0  # the path's first slew, 8 deg
 ONSET = 8.0  # s: the friction rise's start
-# pid_heavy.toml's gains and the luff's holding torque
-KP, KD, KI = (1193000.0, 705600000.0, 652700000.0), (2386000.0, 1411200000.0, 1305400000.0), \
-    (298250.0, 176400000.0, 163175000.0)
-HOLD = (0.0, 0.0, 11203667.5)
 
 
 async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | None = None,
@@ -44,24 +40,11 @@ async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | N
     `drop_at` s its connection is cut and the PLC runs a second on before the shadow polls again."""
     source = Source(url, read_tags(TAGS, "bwr_heavy"))
     await source.connect()
-    async with client(url) as plc:
-        ns = await plc.get_namespace_index("urn:bwr_twin:reclaimer")
-
-        def node(name):
-            return plc.get_node(ua.NodeId(name, ns))
-
-        measured = [node(f"Reclaimer.{a}.{s}") for s in ("EncoderPosition", "EncoderVelocity") for a in AXES]
-        reference = [node(f"Reclaimer.{a}.{s}") for s in ("ReferencePosition", "ReferenceVelocity") for a in AXES]
-        setpoints = [node(f"Reclaimer.{a}.DriveSetpoint") for a in AXES]
-        reclaimer, step = node("Reclaimer"), node("Reclaimer.Step")
-        integral, cycles = np.zeros(3), round(SECONDS / (STEP * 0.01))
+    async with client(url) as connection:
+        plc = await HeavyPlc.attach(connection, STEP, 0.01)
+        cycles = round(SECONDS / (STEP * 0.01))
         for cycle in range(cycles):
-            values = np.array(await plc.read_values(measured + reference))
-            error, rate = values[6:9] - values[0:3], values[9:12] - values[3:6]
-            integral += error * STEP * 0.01
-            forces = np.array(HOLD) + np.array(KP) * error + np.array(KD) * rate + np.array(KI) * integral
-            await plc.write_values(setpoints, [ua.Variant(float(f), ua.VariantType.Double) for f in forces])
-            await reclaimer.call_method(step, ua.Variant(STEP, ua.VariantType.UInt32))
+            await plc.cycle()
             now = (cycle + 1) * STEP * 0.01
             if drop_at is not None and drop_at <= now < drop_at + 1.0:
                 if now - drop_at < STEP * 0.01 / 2:
