@@ -1,5 +1,6 @@
 """Shared paths and fixtures."""
 
+import os
 import re
 import subprocess
 import sys
@@ -9,6 +10,12 @@ from pathlib import Path
 import pytest
 
 from bwr_twin.shipped import MJCF, SCENES
+
+# numpy's floating-point warnings are errors in every command the tests start, as pyproject's
+# filterwarnings makes them in the tests' own process: none may reach an engineer's terminal.
+NUMPY_WARNINGS = ",".join(f"error:{kind} encountered:RuntimeWarning"
+                          for kind in ("invalid value", "overflow", "divide by zero"))
+os.environ["PYTHONWARNINGS"] = ",".join(filter(None, (os.environ.get("PYTHONWARNINGS"), NUMPY_WARNINGS)))
 
 ROOT = Path(__file__).resolve().parents[1]  # the checkout: tests run commands from there
 PAPER_MJCF = MJCF / "bwr.xml"
