@@ -93,8 +93,10 @@ def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
     """The twin's log of the scene resampled to SAMPLE_RATE, with TORQUE_NOISE: the encoders, the
     speed and the wind read at each sample, the drive force its mean over the sample period
     centred on it (a historian's average; a drive fighting friction chatters at the control rate,
-    and a reading of it every 0.1 s aliases that into the log)."""
-    result = simulate(load_scene(scene_path))
+    and a reading of it every 0.1 s aliases that into the log); the wind's heading and air
+    density from the scene, as a run directory's scene.json gives them."""
+    scene = load_scene(scene_path)
+    result = simulate(scene)
     machine = result.machine
     every = round(1.0 / (SAMPLE_RATE * (result.time[1] - result.time[0])))
     rows = np.arange(every, len(result.time) - every, every)
@@ -103,7 +105,8 @@ def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
     rating = np.abs(machine.drive_limits).max(axis=1)
     force = mean + rng.normal(size=mean.shape) * TORQUE_NOISE * rating
     return MachineLog(path=scene_path, time=result.time[rows], q=result.q_measured[rows], force=force,
-                      qd=result.qd_measured[rows], wind=result.wind_speed[rows])
+                      qd=result.qd_measured[rows], wind=result.wind_speed[rows],
+                      wind_heading=np.radians(scene.plant.wind_direction), air_density=scene.plant.air_density)
 
 
 def holdout_path(machine: Machine, minutes: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
