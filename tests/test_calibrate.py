@@ -362,8 +362,9 @@ def test_a_planned_test_stays_within_the_envelope_and_ratings_and_predicts_its_e
     printed = capsys.readouterr().out
     for name in ("travel_damping", "travel_frictionloss", "slew_armature", "luff_damping"):
         assert re.search(rf"{name} +nominal .* expected standard error ([0-9.e+-]+|inf) ", printed), printed
-    # Two minutes move only the travel: its friction is determined, the slew's is named as not.
-    assert re.search(r"travel_frictionloss +nominal +0 N +expected standard error [0-9.e+]+ N\n", printed), printed
+    # Two minutes move only the luff (it comes first): its friction is determined, the slew's is
+    # named as not.
+    assert re.search(r"luff_frictionloss +nominal +0 N m +expected standard error [0-9.e+]+ N m\n", printed), printed
     assert re.search(r"slew_frictionloss .*: not determined by this test", printed), printed
     assert out.read_text().startswith("# written by bwr_twin.calibrate\n")
     assert load_scene(out).path == out
