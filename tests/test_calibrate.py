@@ -141,6 +141,35 @@ def test_a_parameter_the_log_cannot_determine_is_named_and_left_alone(tmp_path, 
     assert '<joint name="slew" class="slew"/>\n' in text  # the slew's line as written
 
 
+# The study's wind (tools/calibration_study.py): 10 m/s towards +Y with 2.5 m/s gusts held 5 s.
+WIND = "wind_speed = 10.0\nwind_direction = 90.0\ngust_amplitude = 2.5\ngust_hold_time = 5.0\nair_density = 1.204"
+
+
+def test_a_log_in_gusty_wind_fits_as_the_same_log_in_still_air(tmp_path):
+    slew = [("joint", "slew", "damping", 0, "5.0e7", "23 % less"),
+            ("joint", "slew", "armature", 0, "2.5e8", "a third of the slewing part")]
+    mjcf = variant(tmp_path, slew)
+    machine = Machine(HEAVY)
+    names = ["slew_damping", "slew_armature"]
+    truth = {"slew_damping": 5.0e7, "slew_armature": 2.5e8}
+    windy = read_log(twin_log(tmp_path / "wind", mjcf, plant=WIND), machine)
+    assert windy.windy and windy.air_density == 1.204 and windy.wind_heading == pytest.approx(np.pi / 2)
+    results = {}
+    for label, log in (("still", read_log(twin_log(tmp_path / "still", mjcf), machine)), ("wind", windy),
+                       ("wind left out", dataclasses.replace(windy, air_density=0.0))):
+        results[label] = fit(Problem(machine, catalogue(machine, names), [log]))
+    for name in names:
+        still, wind = estimate(results["still"], name), estimate(results["wind"], name)
+        error = {label: abs(estimate(r, name).fitted / truth[name] - 1) for label, r in results.items()}
+        # The wind's force applied, the gusty log determines the slew as the still one does...
+        assert wind.identifiable and error["wind"] <= 0.1 and error["wind"] <= error["still"] + 0.05, (name, error)
+        assert wind.interval[1] - wind.interval[0] < 2 * (still.interval[1] - still.interval[0]), (name, wind, still)
+        # ...where the fit that leaves the wind out makes the slew stiffer to resist the gusts.
+        assert error["wind left out"] > 0.5, (name, error)
+    slew_speed = results["still"].columns.index("slew speed")
+    assert results["wind"].rms_after[slew_speed] < 2 * results["still"].rms_after[slew_speed]
+
+
 # -- a historian's CSV, and bad input ------------------------------------------------------------
 
 FRICTION = [4.0e4, 2.0e5, 8.0e5]
@@ -277,6 +306,30 @@ def test_columns_or_units_that_do_not_fit_are_named(friction_log, tmp_path, caps
     assert not out.exists()
 
 
+@pytest.mark.parametrize("table, message", [
+    ("[wind]\ndirection = 90.0\nair_density = 1.204\n", None),
+    ("", r"columns.toml: signals.wind_speed needs a \[wind\] table: direction = DEG"),
+    ("[wind]\ndirection = 90.0\n", r"columns.toml: wind.air_density missing: give it in kg/m\^3"),
+    ("[wind]\ndirection = 90.0\nair_density = 12.0\n", r"wind.air_density is 12 kg/m\^3; air at a mine is 0.5 to 1.6"),
+    ("[wind]\ndirection = \"north\"\nair_density = 1.2\n", r"columns.toml: wind.direction is 'north'; give a finite"),
+])
+def test_a_historian_wind_needs_its_direction_and_air_density(friction_log, tmp_path, capsys, table, message):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    lines = csv.read_text().splitlines()
+    csv.write_text("\n".join([lines[0] + ",WIND", *(line + ",36.0" for line in lines[1:])]) + "\n")
+    mapping.write_text(COLUMN_MAP + 'wind_speed = { column = "WIND", unit = "km/h" }\n' + table)
+    if message is None:
+        log = read_log(csv, Machine(HEAVY), mapping)
+        assert log.windy and log.air_density == 1.204 and log.wind_heading == pytest.approx(np.pi / 2)
+        np.testing.assert_allclose(log.wind, 10.0)
+        return
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(csv), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists()
+
+
 def test_bounds_outside_physics_a_machine_outside_the_contract_and_another_machine_are_refused(
         friction_log, tmp_path, capsys):
     out = tmp_path / "calibration"
@@ -309,8 +362,9 @@ def test_a_planned_test_stays_within_the_envelope_and_ratings_and_predicts_its_e
     printed = capsys.readouterr().out
     for name in ("travel_damping", "travel_frictionloss", "slew_armature", "luff_damping"):
         assert re.search(rf"{name} +nominal .* expected standard error ([0-9.e+-]+|inf) ", printed), printed
-    # Two minutes move only the travel: its friction is determined, the slew's is named as not.
-    assert re.search(r"travel_frictionloss +nominal +0 N +expected standard error [0-9.e+]+ N\n", printed), printed
+    # Two minutes move only the luff (it comes first): its friction is determined, the slew's is
+    # named as not.
+    assert re.search(r"luff_frictionloss +nominal +0 N m +expected standard error [0-9.e+]+ N m\n", printed), printed
     assert re.search(r"slew_frictionloss .*: not determined by this test", printed), printed
     assert out.read_text().startswith("# written by bwr_twin.calibrate\n")
     assert load_scene(out).path == out

@@ -15,6 +15,7 @@ import json
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from bwr_twin.calibrate.fit import Problem, fit
@@ -43,6 +44,12 @@ gust_hold_time = 5.0
 air_density = 1.204
 """
 PARAMS = [f"{a}_{k}" for a in AXES for k in ("damping", "frictionloss", "armature")] + ["boom_counterweight_mass"]
+# A variant's luff holds its boom at every angle with at most this share of its drives' rating
+# (raising and lowering): a counterweight much lighter than bwr_heavy.xml's leaves a luff whose
+# drives cannot hold the boom, let alone raise it against its friction (30.5 MN m pushing against
+# the 13.6 MN m of gravity on the raised boom at the file's counterweight: 22 % lighter and it
+# cannot hold it).
+LUFF_HOLD_SHARE = 0.8
 TOLERANCE = {"damping": 0.10, "frictionloss": 0.20, "armature": 0.05, "mass": 0.05}  # the targets
 
 
@@ -67,8 +74,25 @@ def moved(rng: np.random.Generator) -> float:
     return 1.0 + rng.choice([-1.0, 1.0]) * rng.uniform(0.1, 0.5)
 
 
+def luff_holds(path: Path) -> bool:
+    """The luff of the machine at `path` holds its boom at every angle of its range with at most
+    LUFF_HOLD_SHARE of its drives' rating."""
+    machine = Machine(path)
+    model, data = machine.model, mujoco.MjData(machine.model)
+    luff = machine.joint_ids[2]
+    for angle in np.linspace(*machine.envelope[2], 5):
+        data.qpos[:] = model.qpos0
+        data.qpos[model.jnt_qposadr[luff]] = angle
+        mujoco.mj_forward(model, data)
+        low, high = LUFF_HOLD_SHARE * machine.drive_limits[2]
+        if not low <= data.qfrc_bias[model.jnt_dofadr[luff]] <= high:
+            return False
+    return True
+
+
 def variant(folder: Path, rng: np.random.Generator) -> tuple[Path, dict[str, float], list[float]]:
-    """A variant MJCF, its true parameters by name, and its plant friction."""
+    """A variant MJCF, its true parameters by name, and its plant friction. The counterweight is
+    moved 10-50 % as far as its luff still holds the boom (`luff_holds`), never less than 10 %."""
     nominal = Machine(HEAVY)
     model = nominal.model
     truth, changes = {}, []
@@ -81,11 +105,16 @@ def variant(folder: Path, rng: np.random.Generator) -> tuple[Path, dict[str, flo
         truth[f"{name}_frictionloss"] = FRICTION[axis] * moved(rng)
         changes += [("joint", name, "damping", 0, f"{damping:.6g}", "variant"),
                     ("joint", name, "armature", 0, f"{armature:.6g}", "variant")]
-    mass = 330000.0 * moved(rng)
-    truth["boom_counterweight_mass"] = mass
-    changes.append(("body", "boom_counterweight", "mass", 0, f"{mass:.6g}", "variant"))
+    factor = moved(rng)
     path = folder / "variant.xml"
-    path.write_text(edit(HEAVY.read_text(), changes))
+    while True:
+        mass = 330000.0 * factor
+        path.write_text(edit(HEAVY.read_text(), [*changes, ("body", "boom_counterweight", "mass", 0, f"{mass:.6g}",
+                                                           "variant")]))
+        if abs(factor - 1) <= 0.1 or luff_holds(path):
+            break
+        factor = 1 + np.sign(factor - 1) * max(0.1, 0.95 * abs(factor - 1))
+    truth["boom_counterweight_mass"] = mass
     return path, truth, [truth[f"{a}_frictionloss"] for a in AXES]
 
 
@@ -93,8 +122,10 @@ def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
     """The twin's log of the scene resampled to SAMPLE_RATE, with TORQUE_NOISE: the encoders, the
     speed and the wind read at each sample, the drive force its mean over the sample period
     centred on it (a historian's average; a drive fighting friction chatters at the control rate,
-    and a reading of it every 0.1 s aliases that into the log)."""
-    result = simulate(load_scene(scene_path))
+    and a reading of it every 0.1 s aliases that into the log); the wind's heading and air
+    density from the scene, as a run directory's scene.json gives them."""
+    scene = load_scene(scene_path)
+    result = simulate(scene)
     machine = result.machine
     every = round(1.0 / (SAMPLE_RATE * (result.time[1] - result.time[0])))
     rows = np.arange(every, len(result.time) - every, every)
@@ -103,7 +134,8 @@ def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
     rating = np.abs(machine.drive_limits).max(axis=1)
     force = mean + rng.normal(size=mean.shape) * TORQUE_NOISE * rating
     return MachineLog(path=scene_path, time=result.time[rows], q=result.q_measured[rows], force=force,
-                      qd=result.qd_measured[rows], wind=result.wind_speed[rows])
+                      qd=result.qd_measured[rows], wind=result.wind_speed[rows],
+                      wind_heading=np.radians(scene.plant.wind_direction), air_density=scene.plant.air_density)
 
 
 def holdout_path(machine: Machine, minutes: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,9 @@ mujoco.sysid rolls the windows out (`ModelSequences`, one sequence a window), ru
 Gauss-Newton least squares (`optimize`) and gives the confidence intervals from the Jacobian
 (`calculate_intervals`). Written here: the windows, the residual's weights (each signal divided
 by its own residual RMS, so that the intervals come from the noise actually left), a drive's lag
-and an encoder's offset (signals, not model fields), and the identifiability rule: a parameter
+an encoder's offset (signals, not model fields), the logged wind's force applied in each window
+(`bwr_twin.calibrate.wind`: sysid's rollout takes controls only, so the fit's own rolls out with
+`qfrc_applied` too), and the identifiability rule: a parameter
 whose 95 % interval is not finite or wider than its value is named, put back to its nominal
 value, and the rest fitted again without it.
 """
@@ -19,6 +21,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import mujoco
+import mujoco.rollout
 import numpy as np
 import scipy.special
 from mujoco import sysid
@@ -27,6 +30,7 @@ from mujoco.minimize import jacobian_fd
 from bwr_twin.calibrate.log import MachineLog
 from bwr_twin.calibrate.parameters import Knob
 from bwr_twin.calibrate.start import equation_error_start, masses_first
+from bwr_twin.calibrate.wind import wind_forces
 from bwr_twin.calibrate.windows import cut
 from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.model.spec import Edits, edited_spec
@@ -34,7 +38,12 @@ from bwr_twin.model.spec import Edits, edited_spec
 WINDOW = 5.0  # s: the default window: long enough to see friction and inertia, short enough that
 # the unknown loads (digging, wind) do not carry the prediction away
 MAX_ITERATIONS = 30
-FD_STEP = 1e-6  # relative finite-difference step: friction's constraint solver is exact to about 1e-10
+# The relative finite-difference step (of max(1, |value|)) of every Jacobian, the solver's and
+# the intervals'. The residual is not smooth below about 1e-3 of a parameter (the constraint
+# solver's tolerance, stick and slip): on a ten-parameter fit of the study's, Jacobians taken
+# with 1e-6 came out 50-500 times larger than with 1e-3 to 1e-2, the intervals 1,000 times too
+# narrow, and Gauss-Newton's steps poor (the luff's friction 57 % off against 7 % with 1e-2).
+FD_STEP = 1e-2
 THREADS = 2
 PASSES = 3  # fits: the first with every parameter, the next without those it could not determine
 TIMESTEP = 0.01  # s: the fit's physics step; the heavy machine's motion differs from 0.002 s's by < 0.1 %
@@ -58,9 +67,12 @@ class Problem:
         names = [self.machine.model.joint(j).name for j in self.machine.joint_ids]
         self.joints = names
         self.spec = edited_spec(self.machine.path, Edits(physics_only=True, timestep=self.timestep,
-                                                         joint_sensors=names,
+                                                         joint_sensors=names, still_air=True,
                                                          velocity_sensors=names if self.velocity else ()))
         self.model = self.spec.compile()
+        # Per log, the wind's generalised force at each row (None: no wind logged, still air).
+        self.wind = [wind_forces(self.model, self.machine.joint_ids, log) for log in self.logs]
+        self.applied: list[np.ndarray | None] = []  # per window, on its control grid
         self.columns = [f"{axis} position" for axis in AXES] + ([f"{axis} speed" for axis in AXES] if self.velocity else [])
         self.scales = np.ones(len(self.columns))
         self.params = self._parameters()
@@ -118,6 +130,9 @@ class Problem:
                 data.time = t0
                 state = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS))
                 mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+                wind = self.wind[index]
+                self.applied.append(None if wind is None else np.column_stack(
+                    [np.interp(t0 + control_grid, log.time[rows], wind[rows, d]) for d in range(model.nv)]))
                 names.append(f"{log.path.name}@{t0:.1f}s")
                 states.append(state)
                 controls.append(sysid.TimeSeries(t0 + control_grid, ctrl))
@@ -131,13 +146,17 @@ class Problem:
         """sysid's model residual over all windows (or those indexed) at once: the model compiled
         once per parameter vector, the windows rolled out in one batch on THREADS threads."""
         trajectories = self.sequences.measured_rollout
-        if windows is not None:
-            trajectories = [trajectories[i] for i in windows]
+        chosen = range(len(trajectories)) if windows is None else windows
+        trajectories = [trajectories[i] for i in chosen]
+        applied = [self.applied[i] for i in chosen]
+
+        def rollout(**kwargs):
+            return self._rollout(applied=applied, **kwargs)
 
         def residual(x, params, **_):
             res, predicted, measured = sysid.model_residual(
                 x, params, lambda p: sysid.apply_param_modifiers(p, self.spec), trajectories,
-                modify_residual=self._compare, custom_rollout=self._rollout, n_threads=THREADS,
+                modify_residual=self._compare, custom_rollout=rollout, n_threads=THREADS,
                 resample_true=False)
             if x.ndim > 1:  # sysid stacks (parameter vector, window) pairs as columns: windows go down
                 res = res.T.reshape(x.shape[1], -1).T
@@ -145,10 +164,11 @@ class Problem:
 
         return residual
 
-    def _rollout(self, *, models, datas, control_signal, initial_states, param_dicts, rollout_signal_mapping,
-                 rollout_state_mapping, ctrl_mapping):
-        """sysid's rollout, with each drive's force delayed by its lag and each window started
-        from the encoders less their offsets."""
+    def _rollout(self, *, applied, models, datas, control_signal, initial_states, param_dicts,
+                 rollout_signal_mapping, rollout_state_mapping, ctrl_mapping):
+        """sysid's rollout, with each drive's force delayed by its lag, each window started from
+        the encoders less their offsets, and the wind's force (`applied`, per window of those
+        rolled out) applied."""
         controls, starts = [], []
         qpos = np.array([int(self.model.jnt_qposadr[j]) for j in self.machine.joint_ids])
         per_model = len(control_signal) // len(param_dicts)
@@ -165,8 +185,13 @@ class Problem:
                 state[1 + qpos] -= offset  # FULLPHYSICS: time, then qpos
             controls.append(control)
             starts.append(state)
-        return sysid.sysid_rollout(models, datas, controls, starts, rollout_signal_mapping, rollout_state_mapping,
-                                   ctrl_mapping)
+        if all(a is None for a in applied):
+            return sysid.sysid_rollout(models, datas, controls, starts, rollout_signal_mapping,
+                                       rollout_state_mapping, ctrl_mapping)
+        still = np.zeros((len(controls[0].times), self.model.nv))
+        forces = [still if a is None else a for a in applied] * (len(controls) // len(applied))
+        return _rollout_applied(models, datas, controls, forces, starts, rollout_signal_mapping,
+                                rollout_state_mapping, ctrl_mapping)
 
     def _compare(self, params, predicted, measured, model, return_pred_all, state=None, **_):
         """Measured less predicted at the samples after the window's start, each column divided
@@ -199,6 +224,25 @@ class Problem:
         """The RMS of each compared column over every window."""
         stacked = np.vstack(self.differences(x))
         return np.sqrt(np.mean(stacked ** 2, axis=0))
+
+
+_CONTROL_AND_APPLIED = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_QFRC_APPLIED)
+
+
+def _rollout_applied(models, datas, controls, forces, starts, signal_mapping, state_mapping, ctrl_mapping
+                     ) -> list[sysid.SystemTrajectory]:
+    """sysid.sysid_rollout with a generalised force applied beside each control (`forces`, per
+    rollout, on its control's grid): sysid's passes mujoco.rollout the controls alone. As there,
+    a window's last control drives nothing (the last sample is reached by the one before)."""
+    control = np.stack([c.data[:-1] for c in controls])
+    applied = np.stack([f[:-1] for f in forces])
+    state, sensordata = mujoco.rollout.rollout(list(models), datas, np.stack(starts),
+                                               np.concatenate([control, applied], axis=2),
+                                               control_spec=_CONTROL_AND_APPLIED)
+    return [sysid.SystemTrajectory(model=m, control=sysid.TimeSeries(c.times[:-1], u, signal_mapping=ctrl_mapping),
+                                   sensordata=sysid.TimeSeries(x[:, 0], y, signal_mapping),
+                                   initial_state=s0, state=sysid.TimeSeries(x[:, 0], x, signal_mapping=state_mapping))
+            for m, c, u, x, y, s0 in zip(models, controls, control, state, sensordata, starts, strict=True)]
 
 
 @dataclass(frozen=True)

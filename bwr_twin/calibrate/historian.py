@@ -10,7 +10,10 @@ the fit needs, which column holds it, in what unit, and with what scale and offs
     slew_torque = { column = "SLW_TQ", unit = "kN m" }
     luff_current = { column = "LUF_I", unit = "A", torque_constant = 5.2e4 }  # N m per A
     slew_speed = { column = "SLW_V", unit = "deg/s" }   # optional, every axis or none
-    wind_speed = { column = "WIND", unit = "km/h" }     # optional
+    wind_speed = { column = "WIND", unit = "km/h" }     # optional; needs [wind]
+    [wind]                    # what the wind's force is computed from besides its speed
+    direction = 90.0          # deg from world +X towards +Y: where the wind blows to
+    air_density = 1.2         # kg/m^3
 
 Each value read is (number x scale + offset) in the unit given, then converted to SI. Every axis
 needs its position and its torque (or force), or its current with a torque constant.
@@ -25,6 +28,7 @@ import numpy as np
 
 from bwr_twin.arrays import read_lines
 from bwr_twin.calibrate.log import MachineLog
+from bwr_twin.config.bounds import AIR_DENSITY
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
 
@@ -45,7 +49,7 @@ _ALIASES = {"torque": "force"}
 def read_historian(path: Path, column_map: Path, machine) -> MachineLog:
     """The log in the CSV at `path` as `column_map` maps it; BwrError naming the file, the column
     and the row of the first problem."""
-    entries, time_entry = _read_map(column_map)
+    entries, time_entry, air = _read_map(column_map)
     what = str(path)
     lines = read_lines(path, what=what, max_rows=MAX_ROWS + 1, max_bytes=MAX_BYTES,
                        why=f": a log of at most {MAX_ROWS:,} rows and a header")
@@ -95,7 +99,9 @@ def read_historian(path: Path, column_map: Path, machine) -> MachineLog:
         wind = column(entries["wind_speed"], "wind_speed") * _factor(entries["wind_speed"], _WIND, column_map,
                                                                       "wind_speed")
     qd = np.column_stack(speeds) if len(speeds) == 3 else None
-    return MachineLog(path=path, time=time, q=q, force=force, qd=qd, wind=wind)
+    return MachineLog(path=path, time=time, q=q, force=force, qd=qd, wind=wind,
+                      wind_heading=math.radians(air[0]) if wind is not None else 0.0,
+                      air_density=air[1] if wind is not None else 0.0)
 
 
 def _factor(entry: dict, units: dict[str, float], column_map: Path, key: str) -> float:
@@ -105,9 +111,9 @@ def _factor(entry: dict, units: dict[str, float], column_map: Path, key: str) ->
     return units[unit]
 
 
-def _read_map(path: Path) -> tuple[dict[str, dict], dict]:
-    """The map's signal entries by canonical name (`AXIS_force` for a torque) and its time entry,
-    checked."""
+def _read_map(path: Path) -> tuple[dict[str, dict], dict, tuple[float, float]]:
+    """The map's signal entries by canonical name (`AXIS_force` for a torque), its time entry and
+    its wind's direction (deg) and air density (kg/m^3), checked."""
     try:
         import tomllib
     except ModuleNotFoundError:  # Python 3.10
@@ -152,4 +158,37 @@ def _read_map(path: Path) -> tuple[dict[str, dict], dict]:
     speeds = [f"{axis}_speed" in entries for axis in AXES]
     if any(speeds) and not all(speeds):
         raise BwrError(f"{path}: signals: give the speed of every axis or of none")
-    return entries, time_entry
+    return entries, time_entry, _read_wind(path, raw.get("wind"), "wind_speed" in entries)
+
+
+def _read_wind(path: Path, table, logged: bool) -> tuple[float, float]:
+    """[wind]'s direction (deg) and air density (kg/m^3): what the logged wind speed's force is
+    computed from; (0, 0) where no wind speed is logged."""
+    if table is None and not logged:
+        return 0.0, 0.0
+    if table is None:
+        raise BwrError(f"{path}: signals.wind_speed needs a [wind] table: direction = DEG (where the wind blows "
+                       "to, from world +X towards +Y) and air_density = KG/M3")
+    if not logged:
+        raise BwrError(f"{path}: [wind] without signals.wind_speed: map the wind speed's column, or drop [wind]")
+    if not isinstance(table, dict):
+        raise BwrError(f"{path}: wind must be a table: [wind] with direction = DEG and air_density = KG/M3")
+    unknown = sorted(set(table) - {"direction", "air_density"})
+    if unknown:
+        raise BwrError(f"{path}: wind.{unknown[0]}: not a key of [wind]; give direction and air_density")
+    values = []
+    for key, unit in (("direction", "deg"), ("air_density", "kg/m^3")):
+        value = table.get(key)
+        if value is None:
+            raise BwrError(f"{path}: wind.{key} missing: give it in {unit}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise BwrError(f"{path}: wind.{key} is {value!r}; give a finite number in {unit}")
+        values.append(float(value))
+    direction, density = values
+    if not -360.0 <= direction <= 360.0:
+        raise BwrError(f"{path}: wind.direction is {direction:g} deg; give -360 to 360 deg")
+    low, high = AIR_DENSITY
+    if not low <= density <= high:
+        raise BwrError(f"{path}: wind.air_density is {density:g} kg/m^3; air at a mine is {low:g} to {high:g} kg/m^3 "
+                       "(ISO 2533)")
+    return direction, density

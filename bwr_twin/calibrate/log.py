@@ -22,7 +22,14 @@ class MachineLog:
     q: np.ndarray  # (n, 3) m, rad: the encoders
     force: np.ndarray  # (n, 3) N, N m: what the drives applied
     qd: np.ndarray | None = None  # (n, 3) m/s, rad/s: the speed feedback, if recorded
-    wind: np.ndarray | None = None  # (n,) m/s, if recorded
+    wind: np.ndarray | None = None  # (n,) m/s along wind_heading, if recorded
+    wind_heading: float = 0.0  # rad from world +X towards +Y: where the wind blows to
+    air_density: float = 0.0  # kg/m^3; 0: the fit leaves the wind out (still air, or no wind logged)
+
+    @property
+    def windy(self) -> bool:
+        """The log carries a wind the fit applies (its speed, heading and air density)."""
+        return self.wind is not None and self.air_density > 0
 
     @property
     def rate(self) -> float:
@@ -67,3 +74,6 @@ def check_log(log: MachineLog) -> None:
             row, axis = np.argwhere(bad)[0]
             raise BwrError(f"{what}: row {row + 1}: the {AXES[axis]} {name} is {values[row, axis]} (not a finite "
                            "number)")
+    if log.wind is not None and not np.isfinite(log.wind).all():
+        row = int(np.argmax(~np.isfinite(log.wind)))
+        raise BwrError(f"{what}: row {row + 1}: the wind speed is {log.wind[row]} (not a finite number)")

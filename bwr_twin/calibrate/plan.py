@@ -5,7 +5,9 @@ The motion stays inside the MJCF's operating envelope (with a margin) and its ra
 drives' ratings bound the force (the plant clips it). Each axis in turn moves rest to rest (the
 path's cubic between via points peaks at 1.5 x its mean speed) both ways at several speeds, to
 part viscous from Coulomb friction; short moves accelerate hard, for inertia; the cycles stand
-the slew and the luff at several angles, for the moments of the masses. No digging: the scene
+the luff at several angles, for the moments of the masses (the slew's angle changes no moment:
+the slew swings about the middle of its range, and a long way to another slew angle would fill
+the test with one speed). No digging: the scene
 has no disturbance but what its [disturbance] section, absent, leaves (none).
 
 The expected standard errors are the sensitivity at the nominal model with the log's noise: the
@@ -35,8 +37,8 @@ WRITER = "bwr_twin.calibrate"
 
 def test_motion(machine, minutes: float) -> tuple[np.ndarray, np.ndarray]:
     """Via point times (s) and joint values (k, 3) of the test: cycles of moves, each axis both
-    ways at each of SPEEDS, the centre of the slew's and the luff's swing moving from cycle to
-    cycle so that they stand at several angles."""
+    ways at each of SPEEDS, the centre of the luff's swing moving from cycle to cycle (at the top
+    speed, a move of its own) so that it stands at several angles."""
     if not 1.0 <= minutes <= 120.0:
         raise BwrError(f"--minutes: {minutes:g}; a test lasts 1 to 120 minutes")
     envelope = machine.envelope
@@ -49,25 +51,33 @@ def test_motion(machine, minutes: float) -> tuple[np.ndarray, np.ndarray]:
     total = 60.0 * minutes
     cycle = 0
     poses = (0.0, 0.6, -0.6)  # the swing's centre, as a share of its room either way
+    def hold(target: np.ndarray, seconds: float) -> None:
+        nonlocal t, q
+        t += seconds
+        times.append(t)
+        points.append(target.copy())
+        t += HOLD
+        times.append(t)
+        points.append(target.copy())
+        q = target
+
     while t < total:
         pose = poses[cycle % len(poses)]
-        for axis in range(3):
+        for axis in (2, 1, 0):  # the luff first: a short test still stands it at two angles
+            middle = (centre[axis] + pose * half[axis] if axis == 2 else centre[axis]) if axis else q[axis]
+            if axis == 2 and abs(middle - q[axis]) > 0:  # to the cycle's luff angle, at the top speed
+                target = q.copy()
+                target[axis] = middle
+                hold(target, 1.5 * abs(middle - q[axis]) / (SPEEDS[-1] * rated[axis]))
             for share in SPEEDS:
                 for sign in (1.0, -1.0):
                     duration = MOVE_SECONDS[axis] * (SPEEDS[0] / share) ** 0.5  # faster moves are shorter
                     distance = share * rated[axis] * duration / 1.5
-                    middle = centre[axis] + pose * half[axis] if axis else q[axis]
                     target = q.copy()
                     target[axis] = np.clip(middle + sign * distance / 2, centre[axis] - 2 * half[axis],
                                            centre[axis] + 2 * half[axis])
-                    # A move to another pose is longer: it too peaks at this share of the rated speed.
-                    t += max(duration, 1.5 * abs(target[axis] - q[axis]) / (share * rated[axis]))
-                    times.append(t)
-                    points.append(target.copy())
-                    t += HOLD
-                    times.append(t)
-                    points.append(target.copy())
-                    q = target
+                    # A longer way (to the first side) too peaks at this share of the rated speed.
+                    hold(target, max(duration, 1.5 * abs(target[axis] - q[axis]) / (share * rated[axis])))
                     if t >= total:
                         break
                 if t >= total:
@@ -84,7 +94,7 @@ def scene_text(machine, mjcf: Path, out: Path, minutes: float) -> str:
     header = [
         f"# A calibration test of {machine.name} ({Path(mjcf).name}): {minutes:g} minutes during a stop, the wheel",
         "# not digging. Each axis moves rest to rest both ways at 30, 60 and 95 % of its rated speed, holding 5 s",
-        "# after each move; the slew and the luff swing about several angles. Run it on the machine and log, at",
+        "# after each move; the luff swings about several angles. Run it on the machine and log, at",
         "# 1 to 1,000 Hz, each axis's encoder, drive torque (or current) and speed feedback; then",
         "# python -m bwr_twin.calibrate fit LOG --model MJCF --out DIR. Units: SI (m, rad, s, N, N m).",
     ]

@@ -3,6 +3,7 @@ historian's CSV through its column map (`bwr_twin.calibrate.historian`)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from bwr_twin.calibrate.historian import read_historian
@@ -27,7 +28,10 @@ def read_log(path: str | Path, machine: Machine, column_map: Path | None = None)
 
 
 def _run_directory(path: Path, machine: Machine) -> MachineLog:
-    from bwr_twin.results.run_files import read_timeseries
+    """The run's log, with the wind's heading and air density from its scene.json (a run without
+    one, or in still air, has no wind for the fit to apply)."""
+    from bwr_twin.results.run_files import read_scene, read_timeseries
+    from bwr_twin.results.rundir import SCENE_FILE
 
     csv = path / "timeseries.csv"
     if not csv.is_file():
@@ -35,5 +39,9 @@ def _run_directory(path: Path, machine: Machine) -> MachineLog:
                        "historian's CSV with --columns")
     series = read_timeseries(csv, envelope=machine.envelope)
     signals = series.signals
+    heading, density = 0.0, 0.0
+    if (path / SCENE_FILE).is_file():
+        scene = read_scene(path / SCENE_FILE)
+        heading, density = math.radians(scene.wind_direction), scene.air_density
     return MachineLog(path=path, time=series.time, q=signals["q_measured"], force=signals["drive_force"],
-                      qd=signals["qd_measured"], wind=series.wind_speed)
+                      qd=signals["qd_measured"], wind=series.wind_speed, wind_heading=heading, air_density=density)

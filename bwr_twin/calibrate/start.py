@@ -33,7 +33,9 @@ def equation_error_start(problem, params: sysid.ParameterDict) -> sysid.Paramete
     """`params` with each axis's damping and Coulomb friction moved to their equation-error
     estimate over the log's steady motion (within their bounds); the rest held: `masses_first`
     fits the masses before, and the output-error fit the inertias after."""
-    rows = [_intervals(log, problem.machine) for log in problem.logs]
+    dofs = [int(problem.model.jnt_dofadr[j]) for j in problem.machine.joint_ids]
+    rows = [_intervals(log, None if wind is None else wind[:, dofs])
+            for log, wind in zip(problem.logs, problem.wind, strict=True)]
     q = np.vstack([r[0] for r in rows])
     qd = np.vstack([r[1] for r in rows])
     qdd = np.vstack([r[2] for r in rows])
@@ -100,10 +102,11 @@ def _rated(machine) -> np.ndarray:
     return np.where(np.isfinite(machine.rated_speed), machine.rated_speed, 0.1 * (envelope[:, 1] - envelope[:, 0]))
 
 
-def _intervals(log, machine) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _intervals(log, wind) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per log interval (within a stretch without a gap): the mid-point joint values and speeds,
-    the mean acceleration, and the mean drive force (the logged forces are each sample's mean,
-    so the interval's is the two ends' mean)."""
+    the mean acceleration, and the mean force on the axes: the drive's (the logged forces are
+    each sample's mean, so the interval's is the two ends' mean) and the wind's (`wind`, (n, 3)
+    per row, or None)."""
     from bwr_twin.calibrate.windows import GAP_FACTOR
 
     dt = np.diff(log.time)
@@ -113,6 +116,8 @@ def _intervals(log, machine) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     qd = 0.5 * (speed[1:] + speed[:-1])
     qdd = np.diff(speed, axis=0) / dt[:, None]
     force = 0.5 * (log.force[1:] + log.force[:-1])
+    if wind is not None:
+        force = force + 0.5 * (wind[1:] + wind[:-1])
     return q[keep], qd[keep], qdd[keep], force[keep]
 
 

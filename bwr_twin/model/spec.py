@@ -89,6 +89,8 @@ class Edits:
         joint_sensors: a jointpos sensor on each joint named here, `<joint>_pos`, and a
             jointvel sensor on each named in `velocity_sensors`, `<joint>_vel`: what a
             calibration compares with a machine's encoders and speed feedback.
+        still_air: no wind and no air density, whatever the file gives: a calibration applies
+            the logged wind's force itself, and would otherwise count it twice.
     """
 
     payloads: Sequence[Payload] = ()
@@ -102,6 +104,7 @@ class Edits:
     neighbour: Path | None = None
     joint_sensors: Sequence[str] = ()
     velocity_sensors: Sequence[str] = ()
+    still_air: bool = False
 
 
 NEIGHBOUR = "neighbour/"  # the prefix of every name of an attached second machine
@@ -155,6 +158,9 @@ def edited_spec(path: Path, edits: Edits = Edits()) -> mujoco.MjSpec:
             spec.option.timestep = edits.timestep
         if edits.picture is not None:
             _set_picture(spec, edits.picture)
+        if edits.still_air:
+            spec.option.density = 0.0
+            spec.option.wind = [0.0, 0.0, 0.0]
         if edits.rigid_body_only:
             spec.option.disableflags |= int(_RIGID_BODY_ONLY)
         if edits.physics_only:

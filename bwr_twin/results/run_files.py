@@ -302,6 +302,8 @@ class RunScene:
     reclaim: bool  # a bench reclaim planned from the pile ([reclaim])
     stacking: bool  # the machine stacks a pile ([stacking])
     neighbour_mjcf: Path | None  # a second machine on the rail, if the scene has one
+    wind_direction: float = 0.0  # deg from world +X towards +Y: where the plant's wind blew to
+    air_density: float = 0.0  # kg/m^3 the plant's wind met; 0 for a run in still air (no wind, no gusts)
 
     @property
     def title(self) -> str:
@@ -331,6 +333,9 @@ class RunScene:
             if frame == "paper":
                 via_points = paper_to_world(via_points)
         neighbour = _key(data, "neighbour", what, "object", optional=True)
+        plant = {k: _key(data, f"plant.{k}", what, "number", optional=True)
+                 for k in ("wind_speed", "gust_amplitude", "wind_direction", "air_density")}
+        windy = bool(plant["wind_speed"] or plant["gust_amplitude"])  # the plant's rule: still air costs no drag
         return cls(
             path=Path(_key(data, "path", what, "text")),
             mjcf=Path(_key(data, "machine.mjcf", what, "text")),
@@ -345,6 +350,8 @@ class RunScene:
             reclaim=_key(data, "reclaim", what, "object", optional=True) is not None,
             stacking=_key(data, "stacking", what, "object", optional=True) is not None,
             neighbour_mjcf=None if neighbour is None else Path(_key(data, "neighbour.mjcf", what, "text")),
+            wind_direction=float(plant["wind_direction"] or 0.0),
+            air_density=float(plant["air_density"] or 0.0) if windy else 0.0,
         )
 
 
