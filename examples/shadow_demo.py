@@ -51,7 +51,7 @@ async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
             await plc.cycle()
             await poll_once(source, shadow, print, [view])
             if shadow.thresholds is None and shadow.time >= LEARN:
-                shadow.thresholds = learn(shadow.blocks(), encoder_counts(shadow.measured()), 0.01)
+                shadow.thresholds = learn([shadow.blocks()], encoder_counts(shadow.measured()), 0.01)
                 print(f"thresholds learned on the first {LEARN:g} s; watching", flush=True)
             if cycle % 300 == 0:
                 print(f"t = {shadow.time:.0f} s", flush=True)

@@ -69,7 +69,7 @@ def twin() -> ShadowTwin:
 
 @pytest.fixture(scope="module")
 def thresholds(twin, logs) -> Thresholds:
-    return learn_from(twin, logs["baseline"], 0.01)
+    return learn_from(twin, [logs["baseline"]], 0.01)
 
 
 def test_a_plant_fault_changes_nothing_before_its_start(logs):
@@ -227,7 +227,7 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
                       rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, friction,
                       rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
 
-    thresholds = learn(blocks(200), np.array([1e-3, 1e-3, 1e-3]), 0.01)
+    thresholds = learn([blocks(200)], np.array([1e-3, 1e-3, 1e-3]), 0.01)
     series = blocks(400, fault_from=250)
     known: list = []
     for n in range(10, 400, 7):
@@ -235,3 +235,31 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
     alarms, health = assess(series, thresholds, known)
     assert (alarms, health) == assess(series, thresholds)
     assert [(a.kind, a.axis) for a in alarms] == [("friction_rise", "slew")]
+
+
+def test_thresholds_learned_on_several_logs_see_what_each_log_shows():
+    """A log twice teaches what it teaches once; a second log with a slow excursion of the slew's
+    force (a place of the machine's work the model fits less well) raises the thresholds it
+    touches, so that the excursion would no longer alarm; each log's statistics are its own."""
+    from bwr_twin.shadow.detect import assess, learn
+    from bwr_twin.shadow.twin import Blocks
+
+    rng = np.random.default_rng(2)
+    counts = np.array([1e-3, 1e-3, 1e-3])
+
+    def blocks(n: int, excursion: bool = False) -> Blocks:
+        zeros = np.zeros((n, 3))
+        force = rng.normal(0.0, 1e3, (n, 3))
+        if excursion:
+            force[150:180, 1] -= 1.5e3  # 30 s of the slew's force 1.5 sigma short
+        return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
+                      rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, rng.normal(-1e3, 1e2, (n, 3)),
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
+
+    quiet, rough = blocks(300), blocks(300, excursion=True)
+    once, twice = learn([quiet], counts, 0.01), learn([quiet, quiet], counts, 0.01)
+    assert twice.thresholds == pytest.approx(once.thresholds) and twice.force_sigma == pytest.approx(once.force_sigma)
+    assert assess(rough, once)[0]  # learned on the quiet log alone, the excursion alarms
+    both = learn([quiet, rough], counts, 0.01)
+    assert not assess(rough, both)[0]
+    assert max(both.thresholds[name] / once.thresholds[name] for name in once.thresholds) > 1.5

@@ -83,7 +83,7 @@ def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tm
     served(SCENE, lambda url: missing_tag_then_session(url, wrong, baseline, free))
     assert free == []
     measured = baseline.measured()
-    thresholds = learn(baseline.blocks(), encoder_counts(measured), 0.01)
+    thresholds = learn([baseline.blocks()], encoder_counts(measured), 0.01)
 
     faulty = tmp_path / "faulty.toml"
     faulty.write_text(f'extends = "{SCENE}"\n[[faults]]\nkind = "friction_rise"\naxis = "slew"\npercent = 60.0\n'
@@ -137,7 +137,7 @@ def test_a_map_for_another_machine_is_one_line():
 
 def test_the_command_line_says_an_unreachable_source_is_lost_and_keeps_trying(tmp_path):
     thresholds = tmp_path / "thresholds.json"
-    learn(_still_blocks(), np.array([0.00153, 0.00153, 0.00076]), 0.01).write(thresholds)
+    learn([_still_blocks()], np.array([0.00153, 0.00153, 0.00076]), 0.01).write(thresholds)
     command = [sys.executable, "-m", "bwr_twin.shadow", "--source", f"opc.tcp://127.0.0.1:{free_port()}",
                "--tags", str(TAGS), "--model", str(MJCF), "--thresholds", str(thresholds)]
     done = subprocess.run([*command, "--duration", "3"], check=False, capture_output=True, text=True, cwd=ROOT,

@@ -79,7 +79,7 @@ async def session(url: str, seconds: float) -> tuple[list[float], list[float], i
         for _ in range(round(seconds / (STEP * PERIOD))):
             await plc.cycle()
             if shadow.thresholds is None and shadow.time >= LEARN:
-                shadow.thresholds = thresholds = learn(shadow.blocks(), encoder_counts(shadow.measured()), 0.01)
+                shadow.thresholds = thresholds = learn([shadow.blocks()], encoder_counts(shadow.measured()), 0.01)
                 published.ranges = residual_ranges(twin.limits, twin.machine.rated_speed, thresholds)
                 await published.start()
             outputs = [published, stopwatch] if shadow.thresholds is not None else []

@@ -1,10 +1,11 @@
 """The shadow's targets (docs/shadow.md): detection delay, isolation and false alarms per fault
 class, over seeds, on the heavy machine of scenes/heavy_shadow.toml; and its speed over a log.
 
-    python tools/shadow_study.py [--seeds 20] [--fault-free-hours 50] [--out out/shadow_study]
+    python tools/shadow_study.py [--seeds 20] [--fault-free-hours 50] [--learn-hours 1] [--out out/shadow_study]
 
-Thresholds are learned from one fault-free log (seed 1000). Per class and seed the machine runs
-with the fault at an onset drawn from the seed (60 to 240 s), and the shadow watches its log:
+Thresholds are learned from --learn-hours of fault-free logs (seeds 1000 on). Per class and seed
+the machine runs with the fault at an onset drawn from the seed (60 to 240 s), and the shadow
+watches its log:
 the delay is the first alarm's time less the onset, isolated when that alarm names the fault's
 class and axis. The sizes are the issue's: slew friction +20 %, 5 % of the wheel end's mass
 (the bucket wheel and its load) caked at the CP, the travel drive derated 15 %, the travel
@@ -89,11 +90,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--fault-free-hours", type=float, default=50.0)
+    parser.add_argument("--learn-hours", type=float, default=1.0, help="h of fault-free logs the thresholds are "
+                        "learned on (default 1: an hour of the machine's usual work)")
     parser.add_argument("--out", type=Path, default=Path("out/shadow_study"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     twin = ShadowTwin(MJCF)
-    thresholds = learn_from(twin, run(args.out, "baseline", 1000), 0.01)
+    learned_on = [run(args.out, f"baseline-{seed}", seed)
+                  for seed in range(1000, 1000 + max(1, round(args.learn_hours * 3600 / LOG_S)))]
+    thresholds = learn_from(twin, learned_on, 0.01)
 
     print("| class | seeds | median delay (s) | target | isolated | sizes estimated |")
     print("| --- | --- | --- | --- | --- | --- |")

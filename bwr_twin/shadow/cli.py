@@ -1,6 +1,6 @@
 """The shadow: the twin beside the machine, over a recorded log at full speed or live over OPC UA.
 
-    python -m bwr_twin.shadow --log RUN_DIR --model MJCF --baseline FAULT_FREE_RUN_DIR --out DIR
+    python -m bwr_twin.shadow --log RUN_DIR --model MJCF --baseline FAULT_FREE_RUN_DIR [...] --out DIR
     python -m bwr_twin.shadow --log RUN_DIR --model MJCF --thresholds thresholds.json --out DIR
     python -m bwr_twin.shadow --source opc.tcp://HOST:PORT --tags tags.toml --model MJCF --thresholds FILE
     ... --serve opc.tcp://127.0.0.1:4841     # and serve the residuals, health and alarms over OPC UA
@@ -52,8 +52,9 @@ def main(argv: list[str] | None = None) -> int:
                         "and the alarms at http://127.0.0.1:PORT (0: a free port)")
     parser.add_argument("--model", required=True, type=Path, help="the machine's MJCF the twin runs")
     learned = parser.add_mutually_exclusive_group(required=True)
-    learned.add_argument("--baseline", type=Path, help="a fault-free run directory of the machine: learn the "
-                         "thresholds from it")
+    learned.add_argument("--baseline", type=Path, nargs="+", help="fault-free run directories (or timeseries.csv) "
+                         "of the machine, the more of its usual work the better: learn the "
+                         "thresholds from them")
     learned.add_argument("--thresholds", type=Path, help="thresholds.json an earlier shadow wrote")
     parser.add_argument("--false-alarms-per-hour", type=float, default=DEFAULT_PER_HOUR,
                         help=f"the false-alarm rate the thresholds are set for (1/h, default {DEFAULT_PER_HOUR})")
@@ -80,11 +81,11 @@ def _run(args: argparse.Namespace) -> int:
     from bwr_twin.shadow.twin import ShadowTwin
     from bwr_twin.shadow.watch import learn_from, watch, write_outputs
 
-    inputs = [p for p in (args.log, args.model, args.baseline, args.thresholds) if p is not None]
+    inputs = [p for p in (args.log, args.model, *(args.baseline or ()), args.thresholds) if p is not None]
     check_output(args.out, "shadow", overwrite=args.overwrite, inputs=inputs)
     if not args.model.is_file():
         raise BwrError(f"{args.model}: MJCF file not found")
-    for path in (args.log, args.baseline):
+    for path in (args.log, *(args.baseline or ())):
         if path is not None and not (path / "timeseries.csv" if path.is_dir() else path).is_file():
             raise BwrError(f"{path}: no log there: give a run directory or its timeseries.csv")
     known = Thresholds.read(args.thresholds) if args.thresholds is not None else None  # refused before the twin is built

@@ -21,15 +21,17 @@ reading's last change, within a block and across the blocks it stays unchanged t
 Thresholds: a threshold for `per_hour` false alarms per hour makes one test of the WINDOW onsets
 each block as unlikely to exceed it as the hours ask (Bonferroni over the tests of an hour, on
 the GLR's chi-squared law with one degree of freedom), and at least MARGIN times the largest the
-fault-free log itself gave: what the law misses of the real residuals (slow biases of the
-model), the log shows.
+fault-free logs themselves gave: what the law misses of the real residuals (slow biases of the
+model at places of the machine's work), the logs show, and the more of the machine's usual work
+they hold, the more of it they show.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -171,9 +173,11 @@ def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool, start: int = 0) -> 
     return g, onset, size
 
 
-def learn(blocks: Blocks, counts: np.ndarray, per_hour: float) -> Thresholds:
-    """Thresholds from the blocks of a fault-free log whose encoders count in `counts` (3,) (m,
-    rad), for `per_hour` false alarms per hour."""
+def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresholds:
+    """Thresholds from the blocks of fault-free logs of one machine, whose encoders count in
+    `counts` (3,) (m, rad), for `per_hour` false alarms per hour. Each log's statistics are its
+    own (no onset window spans two logs); the noise and the biases are the logs' together."""
+    blocks = _joined(logs)
     if len(blocks.start) < 30:
         raise BwrError(f"a fault-free log of {len(blocks.start)} whole blocks of {BLOCK:g} s: the noise needs 30 "
                        "at least")
@@ -191,10 +195,22 @@ def learn(blocks: Blocks, counts: np.ndarray, per_hour: float) -> Thresholds:
     law = float(chi2.isf(per_hour / tests_per_hour, 1))
     thresholds = {}
     for h in HYPOTHESES:
-        r, s = _whitened(blocks, base, h)
-        g, _, _ = glr(r, s, 3 if h.axis < 0 else 1, h.sided)
-        thresholds[_name(h)] = max(law, MARGIN * float(g.max(initial=0.0)))
+        largest = max(glr(*_whitened(log, base, h), 3 if h.axis < 0 else 1, h.sided)[0].max(initial=0.0)
+                      for log in logs)
+        thresholds[_name(h)] = max(law, MARGIN * float(largest))
     return Thresholds(**{**asdict(base), "thresholds": thresholds})
+
+
+def _joined(logs: Sequence[Blocks]) -> Blocks:
+    """The blocks of several logs as one series (for their noise and biases)."""
+    if len(logs) == 1:
+        return logs[0]
+
+    def joined(name: str):
+        parts = [getattr(log, name) for log in logs]
+        return None if any(part is None for part in parts) else np.concatenate(parts)
+
+    return Blocks(**{f.name: joined(f.name) for f in fields(Blocks)})
 
 
 def _known(counts: list[float | None]) -> np.ndarray:

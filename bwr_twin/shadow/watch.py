@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,10 +38,11 @@ class Watched:
         return sorted(events, key=lambda e: e["time_s"])
 
 
-def learn_from(twin: ShadowTwin, log: Path, per_hour: float) -> Thresholds:
-    """Thresholds from the fault-free log at `log`."""
-    measured = read_measured(log, twin.limits)
-    return learn(twin.blocks(measured), encoder_counts(measured), per_hour)
+def learn_from(twin: ShadowTwin, logs: Sequence[Path], per_hour: float) -> Thresholds:
+    """Thresholds from the fault-free logs at `logs`, of one machine."""
+    measured = [read_measured(log, twin.limits) for log in logs]
+    counts = np.min([encoder_counts(m) for m in measured], axis=0)  # the finest step any log saw
+    return learn([twin.blocks(m) for m in measured], counts, per_hour)
 
 
 def watch(twin: ShadowTwin, log: Path, thresholds: Thresholds) -> Watched:
