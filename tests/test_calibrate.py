@@ -226,6 +226,59 @@ def test_a_historian_csv_with_jitter_and_a_gap_fits_as_the_run_does(friction_log
         assert summary["parameters"][name]["fitted"] == pytest.approx(value, rel=0.1), name
 
 
+def parquet_of(csv: Path, edit=None) -> Path:
+    """The historian's CSV as the same table in Parquet, its columns as pyarrow reads them."""
+    from pyarrow import csv as arrow_csv
+    from pyarrow import parquet
+
+    table = arrow_csv.read_csv(csv)
+    if edit is not None:
+        table = edit(table)
+    out = csv.with_suffix(".parquet")
+    parquet.write_table(table, out)
+    return out
+
+
+def test_a_historian_parquet_file_reads_as_its_csv(friction_log, tmp_path):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    machine = Machine(HEAVY)
+    from_csv, from_parquet = read_log(csv, machine, mapping), read_log(parquet_of(csv), machine, mapping)
+    for name in ("time", "q", "force"):
+        assert np.array_equal(getattr(from_parquet, name), getattr(from_csv, name)), name
+
+
+def _null_slew(table):
+    import pyarrow as pa
+
+    values = table.column("SLW_POS").to_pylist()
+    values[29] = None
+    return table.set_column(table.schema.get_field_index("SLW_POS"), "SLW_POS", pa.array(values))
+
+
+def _text_slew(table):
+    import pyarrow as pa
+
+    values = [str(v) for v in table.column("SLW_POS").to_pylist()]
+    return table.set_column(table.schema.get_field_index("SLW_POS"), "SLW_POS", pa.array(values))
+
+
+@pytest.mark.parametrize("edit, damage, message", [
+    (_null_slew, None, r"historian.parquet: row 30, column 'SLW_POS': empty \(null\)"),
+    (_text_slew, None, r"historian.parquet: column 'SLW_POS' holds string, not numbers"),
+    (None, lambda data: data[: len(data) // 2], r"historian.parquet: not a Parquet file pyarrow reads"),
+], ids=["null", "text", "truncated"])
+def test_a_bad_historian_parquet_file_is_one_line(friction_log, tmp_path, capsys, edit, damage, message):
+    csv, mapping = historian_csv(friction_log, tmp_path)
+    log = parquet_of(csv, edit)
+    if damage is not None:
+        log.write_bytes(damage(log.read_bytes()))
+    out = tmp_path / "calibration"
+    assert calibrate(["fit", str(log), "--columns", str(mapping), "--model", str(HEAVY), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and re.search(message, err), err
+    assert not out.exists()
+
+
 @pytest.fixture(scope="module")
 def plain_log(tmp_path_factory):
     folder = tmp_path_factory.mktemp("plain")

@@ -22,8 +22,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = CommandParser(prog="python -m bwr_twin.calibrate", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
     fit = commands.add_parser("fit", help="fit the MJCF's parameters to logs of the machine")
-    fit.add_argument("logs", nargs="+", type=Path, help="run directories the twin wrote, or historian CSVs "
-                     "(with --columns)")
+    fit.add_argument("logs", nargs="+", type=Path, help="run directories the twin wrote, or historian CSV or "
+                     "Parquet files (with --columns)")
     fit.add_argument("--model", required=True, type=Path, help="the machine's MJCF to calibrate")
     fit.add_argument("--out", required=True, type=Path, help="output folder (must not exist)")
     fit.add_argument("--params", nargs="+", help="parameters to fit, e.g. slew_damping luff_frictionloss "
@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
                      "frictionloss, armature)")
     fit.add_argument("--holdout", type=Path, help="a log kept out of the fit, predicted over "
                      f"{HOLDOUT_WINDOW:g} s windows by the nominal and the calibrated model")
-    fit.add_argument("--columns", type=Path, help="the TOML column map of historian CSV logs")
+    fit.add_argument("--columns", type=Path, help="the TOML column map of historian logs (CSV or Parquet)")
     fit.add_argument("--window", type=float, default=WINDOW, help=f"s of each window (default {WINDOW:g})")
     fit.add_argument("--iterations", type=int, default=MAX_ITERATIONS, help="Gauss-Newton iterations at most")
     fit.add_argument("--overwrite", action="store_true", help="replace DIR, a calibration the twin wrote")

@@ -1,5 +1,6 @@
-"""A plant historian's CSV log, read through a small TOML column map that says, for each signal
-the fit needs, which column holds it, in what unit, and with what scale and offset:
+"""A plant historian's log, CSV or Parquet (`.parquet`, with the `parquet` extra: pyarrow), read
+through a small TOML column map that says, for each signal the fit needs, which column holds it,
+in what unit, and with what scale and offset:
 
     [time]
     column = "timestamp"      # seconds (or unit = "ms") from any origin
@@ -47,38 +48,21 @@ _ALIASES = {"torque": "force"}
 
 
 def read_historian(path: Path, column_map: Path, machine) -> MachineLog:
-    """The log in the CSV at `path` as `column_map` maps it; BwrError naming the file, the column
-    and the row of the first problem."""
+    """The log in the CSV or Parquet file at `path` as `column_map` maps it; BwrError naming the
+    file, the column and the row of the first problem."""
     entries, time_entry, air = _read_map(column_map)
     what = str(path)
-    lines = read_lines(path, what=what, max_rows=MAX_ROWS + 1, max_bytes=MAX_BYTES,
-                       why=f": a log of at most {MAX_ROWS:,} rows and a header")
-    if not lines or not lines[0].strip():
-        raise BwrError(f"{what}: no header; a historian's CSV starts with its column names")
-    header = [name.strip() for name in lines[0].split(",")]
-    rows = [line for line in lines[1:] if line.strip()]
+    table = _Parquet(path) if path.suffix.lower() == ".parquet" else _Csv(path)
 
     def column(entry: dict, key: str) -> np.ndarray:
         name = entry["column"]
-        if name not in header:
-            raise BwrError(f"{what}: no column '{name}' ({column_map}: {key}); the file has {', '.join(header)}")
-        index = header.index(name)
-        values = np.empty(len(rows))
-        for r, line in enumerate(rows):
-            fields = line.split(",")
-            if len(fields) != len(header):
-                raise BwrError(f"{what}: row {r + 1} has {len(fields)} values for the header's {len(header)} columns")
-            try:
-                values[r] = float(fields[index])
-            except ValueError:
-                raise BwrError(f"{what}: row {r + 1}, column '{name}': '{fields[index].strip()}' is not a number") from None
-            if not math.isfinite(values[r]):
-                raise BwrError(f"{what}: row {r + 1}, column '{name}': {fields[index].strip()} (not a finite number)")
-        return values * entry.get("scale", 1.0) + entry.get("offset", 0.0)
+        if name not in table.header:
+            raise BwrError(f"{what}: no column '{name}' ({column_map}: {key}); the file has {', '.join(table.header)}")
+        return table.values(name) * entry.get("scale", 1.0) + entry.get("offset", 0.0)
 
     time = column(time_entry, "time") * _TIME[time_entry.get("unit", "s")]
-    q = np.empty((len(rows), 3))
-    force = np.empty((len(rows), 3))
+    q = np.empty((len(time), 3))
+    force = np.empty((len(time), 3))
     speeds = []
     for axis, name in enumerate(AXES):
         units = _LINEAR if axis == 0 else _ANGULAR
@@ -102,6 +86,78 @@ def read_historian(path: Path, column_map: Path, machine) -> MachineLog:
     return MachineLog(path=path, time=time, q=q, force=force, qd=qd, wind=wind,
                       wind_heading=math.radians(air[0]) if wind is not None else 0.0,
                       air_density=air[1] if wind is not None else 0.0)
+
+
+class _Csv:
+    """A historian's CSV: a header of column names, then rows of numbers; streamed with a cap."""
+
+    def __init__(self, path: Path):
+        self.what = str(path)
+        lines = read_lines(path, what=self.what, max_rows=MAX_ROWS + 1, max_bytes=MAX_BYTES,
+                           why=f": a log of at most {MAX_ROWS:,} rows and a header")
+        if not lines or not lines[0].strip():
+            raise BwrError(f"{self.what}: no header; a historian's CSV starts with its column names")
+        self.header = [name.strip() for name in lines[0].split(",")]
+        self.rows = [line for line in lines[1:] if line.strip()]
+
+    def values(self, name: str) -> np.ndarray:
+        index = self.header.index(name)
+        values = np.empty(len(self.rows))
+        for r, line in enumerate(self.rows):
+            fields = line.split(",")
+            if len(fields) != len(self.header):
+                raise BwrError(f"{self.what}: row {r + 1} has {len(fields)} values for the header's "
+                               f"{len(self.header)} columns")
+            try:
+                values[r] = float(fields[index])
+            except ValueError:
+                raise BwrError(f"{self.what}: row {r + 1}, column '{name}': '{fields[index].strip()}' is not a "
+                               "number") from None
+            if not math.isfinite(values[r]):
+                raise BwrError(f"{self.what}: row {r + 1}, column '{name}': {fields[index].strip()} (not a finite "
+                               "number)")
+        return values
+
+
+class _Parquet:
+    """A historian's Parquet file: its schema and row count read first, each column read alone
+    only when the map names it, and only if it holds numbers."""
+
+    def __init__(self, path: Path):
+        self.what = str(path)
+        try:
+            import pyarrow.parquet as pq
+        except ModuleNotFoundError:
+            raise BwrError(f"{self.what}: reading Parquet needs pyarrow: pip install 'bwr_twin[parquet]'") from None
+        try:
+            self.file = pq.ParquetFile(path)
+        except FileNotFoundError:
+            raise BwrError(f"{self.what}: no such file") from None
+        except Exception as exc:  # noqa: BLE001 - pyarrow's errors for a file it cannot read have no common base
+            raise BwrError(f"{self.what}: not a Parquet file pyarrow reads ({str(exc)[:120]})") from None
+        rows = self.file.metadata.num_rows
+        if rows > MAX_ROWS:
+            raise BwrError(f"{self.what}: {rows:,} rows; a log of at most {MAX_ROWS:,} rows")
+        self.header = list(self.file.schema_arrow.names)
+
+    def values(self, name: str) -> np.ndarray:
+        import pyarrow as pa
+
+        kind = self.file.schema_arrow.field(name).type
+        if not (pa.types.is_floating(kind) or pa.types.is_integer(kind)):
+            raise BwrError(f"{self.what}: column '{name}' holds {kind}, not numbers")
+        try:
+            column = self.file.read(columns=[name]).column(0)
+        except Exception as exc:  # noqa: BLE001 - as above
+            raise BwrError(f"{self.what}: column '{name}' cannot be read ({str(exc)[:120]})") from None
+        if column.null_count:
+            row = int(np.flatnonzero(column.is_null().to_numpy(zero_copy_only=False))[0])
+            raise BwrError(f"{self.what}: row {row + 1}, column '{name}': empty (null)")
+        values = column.to_numpy().astype(float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise BwrError(f"{self.what}: row {bad[0] + 1}, column '{name}': {values[bad[0]]} (not a finite number)")
+        return values
 
 
 def _factor(entry: dict, units: dict[str, float], column_map: Path, key: str) -> float:

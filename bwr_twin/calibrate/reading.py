@@ -1,5 +1,5 @@
 """A log read from where it is: a run directory the twin wrote (its timeseries.csv) or a plant
-historian's CSV through its column map (`bwr_twin.calibrate.historian`)."""
+historian's CSV or Parquet file through its column map (`bwr_twin.calibrate.historian`)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from bwr_twin.model.machine import Machine
 
 
 def read_log(path: str | Path, machine: Machine, column_map: Path | None = None) -> MachineLog:
-    """The log at `path`: a run directory the twin wrote, or a historian's CSV read through
-    `column_map` (a TOML file). Checked: rate, time, finiteness; a problem is one BwrError naming
+    """The log at `path`: a run directory the twin wrote, or a historian's CSV or Parquet file
+    read through `column_map` (a TOML file). Checked: rate, time, finiteness; a problem is one BwrError naming
     the file, the column and the row."""
     path = Path(path)
     if path.is_dir():
@@ -22,7 +22,8 @@ def read_log(path: str | Path, machine: Machine, column_map: Path | None = None)
     elif column_map is not None:
         log = read_historian(path, column_map, machine)
     else:
-        raise BwrError(f"{path}: not a run directory the twin wrote; a historian's CSV needs --columns MAP.toml")
+        raise BwrError(f"{path}: not a run directory the twin wrote; a historian's CSV or Parquet file needs "
+                       "--columns MAP.toml")
     check_log(log)
     return log
 
