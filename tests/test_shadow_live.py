@@ -31,18 +31,19 @@ MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 TAGS = ROOT / "examples" / "shadow_tags.toml"
 STEP = 10  # control periods a PLC cycle: 0.1 s
 SECONDS = 40.0  # the path's first slew, 8 deg
+LEARNED = 80.0  # s of the fault-free session the thresholds are learned on: the slew, then the travel moving
 ONSET = 8.0  # s: the friction rise's start
 
 
 async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | None = None,
-                  server: ShadowServer | None = None) -> None:
-    """A PLC at 10 Hz for SECONDS; the shadow polls after every cycle (publishing on `server`); at
+                  server: ShadowServer | None = None, seconds: float = SECONDS) -> None:
+    """A PLC at 10 Hz for `seconds`; the shadow polls after every cycle (publishing on `server`); at
     `drop_at` s its connection is cut and the PLC runs a second on before the shadow polls again."""
     source = Source(url, read_tags(TAGS, "bwr_heavy"))
     await source.connect()
     async with client(url) as connection:
         plc = await HeavyPlc.attach(connection, STEP, 0.01)
-        cycles = round(SECONDS / (STEP * 0.01))
+        cycles = round(seconds / (STEP * 0.01))
         for cycle in range(cycles):
             await plc.cycle()
             now = (cycle + 1) * STEP * 0.01
@@ -71,23 +72,30 @@ async def missing_tag_then_session(url: str, wrong_tags, shadow: LiveShadow, eve
     """A tag map naming a node the server lacks is refused in one line; then a session."""
     with pytest.raises(BwrError, match=r"tag luff.speed = 'Reclaimer.Luff.Tachometer': .*cannot be read"):
         await Source(url, read_tags(wrong_tags, "bwr_heavy")).connect()
-    await session(url, shadow, events)
+    await session(url, shadow, events, seconds=LEARNED)
 
 
-def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tmp_path):
-    """Also: a tag that is missing is one line, as the shadow connects."""
-    wrong = tmp_path / "tags.toml"
+@pytest.fixture(scope="module")
+def thresholds(twin, tmp_path_factory):
+    """Learned live, on a fault-free session of the served machine. Also: a tag that is missing
+    is one line, as the shadow connects."""
+    wrong = tmp_path_factory.mktemp("tags") / "tags.toml"
     wrong.write_text(TAGS.read_text().replace("Reclaimer.Luff.EncoderVelocity", "Reclaimer.Luff.Tachometer"))
     free: list = []
     baseline = LiveShadow(twin, None, free.append)
     served(SCENE, lambda url: missing_tag_then_session(url, wrong, baseline, free))
     assert free == []
-    measured = baseline.measured()
-    thresholds = learn([baseline.blocks()], encoder_counts(measured), 0.01)
+    return learn([baseline.blocks()], encoder_counts(baseline.measured()), 0.01)
 
-    faulty = tmp_path / "faulty.toml"
-    faulty.write_text(f'extends = "{SCENE}"\n[[faults]]\nkind = "friction_rise"\naxis = "slew"\npercent = 60.0\n'
-                      f"start = {ONSET}\n")
+
+def faulty_scene(folder, fault: str):
+    scene = folder / "faulty.toml"
+    scene.write_text(f'extends = "{SCENE}"\n[[faults]]\n{fault}\nstart = {ONSET}\n')
+    return scene
+
+
+def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, thresholds, tmp_path):
+    faulty = faulty_scene(tmp_path, 'kind = "friction_rise"\naxis = "slew"\npercent = 60.0')
     events: list = []
     shadow = LiveShadow(twin, thresholds, events.append)
     published = ShadowServer(f"opc.tcp://127.0.0.1:{free_port()}",
@@ -103,6 +111,22 @@ def test_the_live_shadow_names_a_friction_rise_through_a_dropped_source(twin, tm
     # Served as it went: each block's residuals, the slew's health down to 0 with its alarm.
     assert newest == shadow.blocks().end[-1] and len(published.latencies) == len(shadow.blocks().start)
     assert health == 0.0 and condition == ("friction_rise", "slew")
+
+
+@pytest.mark.parametrize("fault, named", [
+    ('kind = "mass_change"\nmass = 4900.0', ("mass_change", "wheel end")),
+    ('kind = "drive_derate"\naxis = "travel"\npercent = 15.0', ("drive_derate", "travel")),
+], ids=["mass_change", "drive_derate"])
+def test_the_live_shadow_names_the_other_plant_faults(twin, thresholds, tmp_path, fault, named):
+    """serve plays the machine with the fault from ONSET s, at tools/shadow_study.py's sizes, over
+    the path's first LEARNED s (the travel moves from 40 s); the shadow, reading the drives' setpoints
+    as their forces (examples/shadow_tags.toml), names its class and where it is."""
+    events: list = []
+    shadow = LiveShadow(twin, thresholds, events.append)
+    served(faulty_scene(tmp_path, fault), lambda url: session(url, shadow, events, seconds=LEARNED))
+    alarms = [e for e in events if e["event"] == "alarm"]
+    assert alarms and (alarms[0]["kind"], alarms[0]["axis"]) == named, events
+    assert alarms[0]["time_s"] >= ONSET
 
 
 async def watched_and_served(url: str, shadow: LiveShadow, events: list, published: ShadowServer) -> tuple:
