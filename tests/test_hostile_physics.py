@@ -123,7 +123,9 @@ def test_measured_rate_signals_without_a_pile(tmp_path):
     ("1e308", True, r"FB_BwrPid\.KP\[0\] = 1\.0E\+308 lies outside REAL's range \(magnitudes 1\.18e-38 to 3\.4e\+38"),
     ("5e-324", False, r"FB_BwrPid\.KP\[0\] = 5\.0E-324 lies outside LREAL's range \(magnitudes 2\.23e-308"),
     ("1e-40", True, r"FB_BwrPid\.KP\[0\] = 1\.0E-40 lies outside REAL's range"),
-], ids=["1e308 REAL", "5e-324 LREAL", "1e-40 REAL"])
+    ("1e308", False, r"FB_BwrPid\.KP\[0\] = 1\.0E\+308 times the envelope's span of the travel \(50\) overflows "
+                     r"LREAL \(largest 1\.8e\+308\): the block would compute infinity"),
+], ids=["1e308 REAL", "5e-324 LREAL", "1e-40 REAL", "1e308 LREAL"])
 def test_a_gain_beyond_the_plcs_numbers(tmp_path, gain, real, pattern):
     text = extends("pid_paper.toml") + f"\n[controller]\nkp = [{gain}, 7262500.0, 5000000.0]\n"
     refused(tmp_path, text, r"bad\.toml: \[controller\]: the constant " + pattern, module="export",

@@ -21,6 +21,8 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
+import numpy as np
+
 from bwr_twin.config.scene import Scene
 from bwr_twin.control.fuzzy import FuzzySurface, default_grid_points, surface_error
 from bwr_twin.control.rulebase import load_rule_base
@@ -38,6 +40,8 @@ from bwr_twin.export.blocks import (
 )
 from bwr_twin.export.plcopen import project_xml
 from bwr_twin.export.structured_text import (
+    LREAL_MAX,
+    REAL_MAX,
     Block,
     GlobalConstants,
     as_real,
@@ -45,7 +49,7 @@ from bwr_twin.export.structured_text import (
     check_constants,
     globals_text,
 )
-from bwr_twin.model.machine import Machine
+from bwr_twin.model.machine import AXES, Machine
 from bwr_twin.ownership import check_output
 from bwr_twin.results.rundir import staged_directory
 from bwr_twin.sim.scaling import check_surface_grid
@@ -82,10 +86,12 @@ def export_plc(scene: Scene, out: Path, *, real: bool = False, grid: int | None 
     if fuzzy != "table" and scene.controller.type != "fuzzy_model":
         raise SceneError(f"{scene.path}: --fuzzy {fuzzy} sets how a fuzzy controller infers; [controller] type "
                          f"{scene.controller.type!r} has no fuzzy part")
-    block, constants = writers[scene.controller.type](scene, Machine(scene.controller_mjcf))
+    machine = Machine(scene.controller_mjcf)
+    block, constants = writers[scene.controller.type](scene, machine)
     variables = [(block.name, v) for section in block.variables.values() for v in section]
     variables += [(c.name, v) for c in constants for v in c.variables]
     check_constants(f"{scene.path}: [controller]", variables, real)
+    _check_gains(f"{scene.path}: [controller]", variables, machine, real)
     files = {f"{block.name}.st": block_text(block)}
     files |= {f"{c.name}.st": globals_text(c) for c in constants}
     files[PROJECT] = project_xml(block, constants, scene.path.name)
@@ -97,6 +103,25 @@ def export_plc(scene: Scene, out: Path, *, real: bool = False, grid: int | None 
         for name, content in files.items():
             (staging / name).write_text(content, encoding="utf-8")
     return [out / name for name in files]
+
+
+def _check_gains(where: str, variables, machine: Machine, real: bool) -> None:
+    """SceneError naming the first gain whose product the block's arithmetic cannot hold: KP
+    times the largest position error the envelope allows, KD times twice the rated speed (the
+    reference and the axis at full speed opposite ways). A type holds the constant, yet the PLC
+    would compute infinity from it."""
+    largest = REAL_MAX if real else LREAL_MAX
+    reach = {"KP": np.ptp(machine.envelope, axis=1), "KD": 2.0 * machine.rated_speed}
+    for owner, var in variables:
+        if var.name not in reach or var.value is None:
+            continue
+        for j, literal in enumerate(var.value):
+            product = abs(float(literal)) * float(reach[var.name][j])
+            if np.isfinite(reach[var.name][j]) and not product <= largest:
+                times = "the envelope's span" if var.name == "KP" else "twice the rated speed"
+                raise SceneError(f"{where}: the constant {owner}.{var.name}[{j}] = {literal} times {times} of the "
+                                 f"{AXES[j]} ({float(reach[var.name][j]):.4g}) overflows {'REAL' if real else 'LREAL'} "
+                                 f"(largest {largest:.3g}): the block would compute infinity")
 
 
 def _check_fuzzy_options(grid: int | None, fuzzy: str) -> None:
