@@ -63,6 +63,8 @@ INSTRUMENT_VARIABLES = (
              "discharge, the transport delay later, with its noise and filter; 0 before the first period"),
     Variable("WheelCurrent", D, "A", "the wheel motor's line current as its drive measures it, with its noise; "
              "0 before the first period"),
+    Variable("WindSpeed", D, "m/s", "the anemometer: the wind's speed towards the scene's wind_direction over the "
+             "last period (its mean before the first); served when the plant has wind"),
 )
 
 # Served only when the run has a [neighbour] (docs/anticollision.md): what the automation hears of

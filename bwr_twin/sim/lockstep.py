@@ -240,6 +240,12 @@ class Lockstep:
         """(runs, 3) read-only: the forces the drives applied in the last period (N, N m)."""
         return read_only(self._plant.drive_force)
 
+    @property
+    def wind_speed(self) -> np.ndarray | None:
+        """(runs,) m/s: the wind along its heading in the last period, as an anemometer reads it
+        (the mean before the first); None when every run is in still air."""
+        return self._plant.wind_speed
+
     @functools.cached_property
     def failures(self) -> types.MappingProxyType:
         """Run index -> why it stopped."""

@@ -91,6 +91,12 @@ class Plant:
         """Live (runs, 3) view of the neighbour's joint speeds; AttributeError without a neighbour."""
         return self._neighbour_rail().qd
 
+    @property
+    def wind_speed(self) -> np.ndarray | None:
+        """(runs,) m/s: each run's wind along its heading in the last period (its mean before the
+        first); None when every run is in still air."""
+        return None if self._wind is None else self._wind.speed
+
     def _neighbour_rail(self) -> _NeighbourDrive:
         if self._rail is None:
             raise AttributeError("this plant has no neighbour on its rail")
@@ -194,10 +200,12 @@ class _Wind:
         heading = parameters.wind_direction
         self._direction = np.stack([np.cos(heading), np.sin(heading), np.zeros(parameters.runs)], axis=1)
         self._mean = parameters.wind_speed
+        self.speed = self._mean.copy()  # (runs,) m/s along each heading in the last period: what an anemometer reads
 
     def blow(self, gust: np.ndarray) -> None:
         """Set each run's wind for the period: its mean plus its (runs,) gust, along its heading."""
-        self._wind[:] = (self._mean + gust)[:, None] * self._direction
+        np.add(self._mean, gust, out=self.speed)
+        self._wind[:] = self.speed[:, None] * self._direction
 
 
 @numba.njit(cache=True)

@@ -18,6 +18,8 @@ The instruments and scanners, served only by a run that has them (bwr_twin.serve
                                without one, at the power of cutting the wheel's capacity with the
                                scene's [digging]; without that, NO_POWER_CURRENT
     a scanner's Ranges         0 to its range (`{site}_range`); Angles its fan; ScanTime as SimTime
+    WindSpeed                  the scene's mean wind less and plus its gust amplitude, and 0 (a
+                               plant with wind)
 """
 
 from __future__ import annotations
@@ -69,6 +71,10 @@ def eu_ranges(loop: Lockstep) -> dict[tuple[str, str | None], Range]:
         ranges["BeltScale", None] = (0.0, belt_scale_span(loop))
     if instruments is not None and instruments.motor is not None:
         ranges["WheelCurrent", None] = (0.0, wheel_current_span(loop))
+    if loop.wind_speed is not None:
+        plant = loop.scenes[0].plant
+        low, high = plant.wind_speed - plant.gust_amplitude, plant.wind_speed + plant.gust_amplitude
+        ranges["WindSpeed", None] = (min(0.0, low), max(0.0, high))
     if loop.neighbour is not None:  # its envelope, and the run's time
         for j, axis in enumerate(AXES):
             ranges["NeighbourPosition", axis] = tuple(float(v) for v in loop.neighbour.machine.envelope[j])

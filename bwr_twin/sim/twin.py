@@ -41,7 +41,8 @@ class Twin:
             `drive_applied()` and `reclaim_rate()` give the rest.
 
     A run with instruments, scanners or faults reads them too, only as `reading` is built: the
-    belt scale (t/h) and wheel current (A) of the last period ("BeltScale", "WheelCurrent"),
+    belt scale (t/h) and wheel current (A) of the last period ("BeltScale", "WheelCurrent"), the
+    anemometer's wind (m/s along the scene's heading) of the last period in a windy plant ("WindSpeed"),
     each scanner's latest scan ("Scans", `LatestScan`s), each fault's state in the period
     that starts at SimTime ("Faults", bools in the scene's order), and a neighbour's latest
     position report ("NeighbourPosition", m and rad, true at "NeighbourReportTime", s).
@@ -120,6 +121,8 @@ class Twin:
             found["Scans"] = tuple(latest_scan(log) for log in loop.scanning.logs)
         if loop.faults.faults:  # the period of SimTime: at the path's end, the last one advanced
             found["Faults"] = tuple(loop.faults.acting(min(loop.k, loop.samples - 1)))
+        if loop.wind_speed is not None:
+            found["WindSpeed"] = float(loop.wind_speed[0])
         if loop.neighbour is not None:  # its latest report, as the encoders are read
             found["NeighbourPosition"] = self.neighbour_position()
             found["NeighbourReportTime"] = self.neighbour_report_time()
