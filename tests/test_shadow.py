@@ -225,7 +225,7 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
             force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
                       rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, friction,
-                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, zeros)
 
     thresholds = learn([blocks(200)], np.array([1e-3, 1e-3, 1e-3]), 0.01)
     series = blocks(400, fault_from=250)

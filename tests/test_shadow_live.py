@@ -154,6 +154,57 @@ async def watched_and_served(url: str, shadow: LiveShadow, events: list, publish
         await published.stop()
 
 
+WIND = "[plant]\nwind_speed = 15.0\ngust_amplitude = 4.0\nwind_direction = 90.0\n"  # m/s, m/s, deg: a windy shift
+
+
+async def windy_session(url: str, tags, shadows: list[LiveShadow]) -> None:
+    """The PLC at 10 Hz for SECONDS; after every cycle one sample, with the anemometer's wind,
+    goes to each of `shadows`."""
+    source = Source(url, tags)
+    await source.connect()
+    async with client(url) as connection:
+        plc = await HeavyPlc.attach(connection, STEP, 0.01)
+        for _ in range(round(SECONDS / (STEP * 0.01))):
+            await plc.cycle()
+            sample = await source.read()
+            for shadow in shadows:
+                shadow.add(sample)
+    await source.close()
+
+
+def test_the_live_shadow_reads_the_anemometer_and_takes_no_gust_for_a_fault(twin, thresholds, tmp_path):
+    """serve plays the machine in a 15 m/s wind gusting by 4 m/s and serves its anemometer
+    (WindSpeed); the shadow that reads it as its [wind] tag raises nothing, with thresholds
+    learned in still air, where one without it takes the wind's torque for a drive fault."""
+    windy = tmp_path / "windy.toml"
+    windy.write_text(f'extends = "{SCENE}"\n{WIND}')
+    tags = tmp_path / "tags.toml"
+    tags.write_text(TAGS.read_text() + '\n[wind]\nspeed = "Reclaimer.WindSpeed"\ndirection = 90.0\n'
+                    'air_density = 1.204\n')
+    read = read_tags(tags, "bwr_heavy")
+    assert read.wind is not None and read.wind.air.density == 1.204
+    heard, unheard = [], []
+    with_wind = LiveShadow(twin, thresholds, heard.append, read.wind.air)
+    without = LiveShadow(twin, thresholds, unheard.append)
+    served(windy, lambda url: windy_session(url, read, [with_wind, without]))
+    assert len(with_wind.blocks().start) >= SECONDS - 2
+    assert heard == [], heard
+    assert [e["event"] for e in unheard][:1] == ["alarm"], unheard
+
+
+@pytest.mark.parametrize("table, complaint", [
+    ('[wind]\ndirection = 90.0\nair_density = 1.2', r"'wind.speed' must be a node id string"),
+    ('[wind]\nspeed = "W"\ndirection = 90.0\nair_density = 20.0', r"'wind.air_density' must be a number in \(0, 2\]"),
+    ('[wind]\nspeed = "W"\ndirection = "north"\nair_density = 1.2', r"'wind.direction' must be a number"),
+    ('[wind]\nspeed = "W"\nvane = "V"\ndirection = 9.0\nair_density = 1.2', r"'wind.vane' is not a key of \[wind\]"),
+])
+def test_a_bad_wind_table_is_one_line_naming_its_key(tmp_path, table, complaint):
+    tags = tmp_path / "tags.toml"
+    tags.write_text(TAGS.read_text() + "\n" + table + "\n")
+    with pytest.raises(BwrError, match=complaint):
+        read_tags(tags, "bwr_heavy")
+
+
 def test_a_map_for_another_machine_is_one_line():
     with pytest.raises(BwrError, match="the tag map is for machine 'bwr_heavy', the model is 'bwr'"):
         read_tags(TAGS, "bwr")

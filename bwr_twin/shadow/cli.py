@@ -182,7 +182,7 @@ def _live(args: argparse.Namespace) -> int:
     def say(event: dict) -> None:
         print(json.dumps(event), flush=True)
 
-    shadow = LiveShadow(twin, thresholds, say)
+    shadow = LiveShadow(twin, thresholds, say, tags.wind.air if tags.wind is not None else None)
 
     async def live() -> None:
         async with _outputs(args, twin, thresholds) as outputs:

@@ -134,19 +134,32 @@ def _name(h: _Hypothesis) -> str:
 
 
 def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.ndarray]:
-    """(residual, signature) of a hypothesis, each (blocks,) in units of the noise."""
+    """(residual, signature) of a hypothesis, each (blocks,) in units of the noise, the
+    fault-free machine's share (`_biased`) taken off the residual."""
+    r, s, biased = _raw(blocks, t, h)
+    return r - t.bias.get(_name(h), 0.0) * biased, s
+
+
+def _raw(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(residual, signature, what the fault-free machine's bias is a share of) of a hypothesis,
+    each (blocks,) (or (blocks x 3,) for every axis) in units of the noise. A drive's bias is a
+    share of the force that moves its axis, the drive's and the wind's together: the force it
+    spends holding against a wind adds no bias, and counted in would dilute a share learned in
+    wind and overstate one learned in still air."""
     if h.kind == "encoder_drift":
         j = h.axis
         sigma = t.drift_sigma[j]
-        return (blocks.drift[:, j] - t.drift_mean[j]) / sigma, np.full(len(blocks.start), 1.0 / sigma)
+        s = np.full(len(blocks.start), 1.0 / sigma)
+        return (blocks.drift[:, j] - t.drift_mean[j]) / sigma, s, s
     sigma, mean = np.asarray(t.force_sigma), np.asarray(t.force_mean)
     r = (blocks.force - mean) / sigma
     s = {"friction_rise": blocks.friction, "drive_derate": blocks.derate, "mass_change": blocks.mass}[h.kind] / sigma
+    biased = s
+    if h.kind == "drive_derate" and blocks.wind is not None:
+        biased = (blocks.derate - blocks.wind) / sigma  # -(drive force + wind force)
     if h.axis >= 0:
-        r, s = r[:, h.axis], s[:, h.axis]
-    else:
-        r, s = r.ravel(), s.ravel()  # every axis: (blocks x 3,), summed by block below
-    return r - t.bias.get(_name(h), 0.0) * s, s
+        return r[:, h.axis], s[:, h.axis], biased[:, h.axis]
+    return r.ravel(), s.ravel(), biased.ravel()  # every axis: (blocks x 3,), summed by block below
 
 
 def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool, start: int = 0) -> tuple[np.ndarray, np.ndarray,
@@ -188,8 +201,8 @@ def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresh
                       _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, {}, {})
     bias = {}
     for h in HYPOTHESES:  # the size each fault seems to have on the fault-free machine: its controller's share
-        r, s = _whitened(blocks, base, h)
-        bias[_name(h)] = float((r * s).sum() / max((s * s).sum(), 1e-300))
+        r, _, biased = _raw(blocks, base, h)
+        bias[_name(h)] = float((r * biased).sum() / max((biased * biased).sum(), 1e-300))
     base = Thresholds(**{**asdict(base), "bias": bias})
     tests_per_hour = 3600.0 / BLOCK * WINDOW * len(HYPOTHESES)
     law = float(chi2.isf(per_hour / tests_per_hour, 1))

@@ -22,7 +22,7 @@ from asyncua import Client, ua
 
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import SOURCES, Alarm, Thresholds, assess
-from bwr_twin.shadow.measured import GAP, Measured
+from bwr_twin.shadow.measured import GAP, Air, Measured
 from bwr_twin.shadow.tags import Tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
@@ -59,7 +59,8 @@ class Source:
         self._client, self._nodes = client, nodes
 
     async def read(self) -> np.ndarray:
-        """(10,) the time (s), then per axis position, speed and force."""
+        """(10,) the time (s), then per axis position, speed and force; (11,) with the wind's speed
+        (m/s) last, where the tag map names the anemometer."""
         values = await self._client.read_values(self._nodes)
         return np.array(values, dtype=float)
 
@@ -112,10 +113,12 @@ class LiveShadow:
 
     `say(event)` hears every event (a dict, as events.jsonl holds them) as it happens: the source
     lost and back, a gap, an alarm. Without `thresholds` (None) it only makes blocks, to learn
-    thresholds from (`blocks()`, `measured()`); set them and it detects from the next block on."""
+    thresholds from (`blocks()`, `measured()`); set them and it detects from the next block on.
+    `air`: the air of the anemometer's wind, when the samples carry it (Tags.wind)."""
 
-    def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None]):
-        self._twin, self.thresholds, self._say = twin, thresholds, say
+    def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None],
+                 air: Air | None = None):
+        self._twin, self.thresholds, self._say, self._air = twin, thresholds, say, air
         self._samples: list[np.ndarray] = []
         self._done = 0  # the first sample of the block not yet handed to the twin
         self._blocks: list[Blocks] = []
@@ -131,7 +134,7 @@ class LiveShadow:
         return float(self._samples[-1][0]) if self._samples else 0.0
 
     def add(self, sample: np.ndarray, detect: bool = True) -> bool:
-        """One sample (10,) as Source.read gives it; one whose time has not moved on adds nothing.
+        """One sample (10,) or (11,) as Source.read gives it; one whose time has not moved on adds nothing.
         True if it completed a block, whose detectors have run unless `detect` is False (then
         call `detect()`)."""
         if self._samples and sample[0] <= self._samples[-1][0]:
@@ -143,12 +146,15 @@ class LiveShadow:
         return made
 
     def measured(self, start: int = 0) -> Measured:
-        """The samples from `start` on but the newest, whose force the next sample reads: a force
-        tag gives the force held over the period that ended at its sample's time."""
+        """The samples from `start` on but the newest, whose force (and wind) the next sample
+        reads: a force tag gives the force held over the period that ended at its sample's time,
+        and so does the anemometer."""
         rows = np.array(self._samples[start:])
-        axes = rows[:, 1:].reshape(len(rows), 3, 3)
+        axes = rows[:, 1:10].reshape(len(rows), 3, 3)
         period = float(np.median(np.diff(rows[:, 0]))) if len(rows) > 1 else 1.0
-        return Measured(rows[:-1, 0], axes[:-1, :, 0], axes[:-1, :, 1], axes[1:, :, 2], period, axes[:-1, :, 1])
+        windy = self._air is not None and rows.shape[1] > 10
+        return Measured(rows[:-1, 0], axes[:-1, :, 0], axes[:-1, :, 1], axes[1:, :, 2], period, axes[:-1, :, 1],
+                        rows[1:, 10] if windy else None, self._air if windy else None)
 
     def _advance(self) -> bool:
         samples = self._samples
@@ -193,8 +199,8 @@ class LiveShadow:
         """(3,) the encoders' reading at the sample of time `t` (m, rad, rad)."""
         for sample in reversed(self._samples):
             if sample[0] <= t:
-                return sample[1::3].copy()
-        return self._samples[0][1::3].copy()
+                return sample[1:10:3].copy()
+        return self._samples[0][1:10:3].copy()
 
     def blocks(self) -> Blocks:
         """Every block so far."""

@@ -19,6 +19,11 @@ Beside each residual, each fault's signature: the force residual a fault of unit
 give on the measured motion. A friction rise of share x gives -x times the nominal friction
 force (viscous and Coulomb); a derate of share x, -x times the drive's force; a mass change of
 m kg at the CP, -m times the inverse dynamics of a tonne there (gravity and inertia).
+
+Where the log has the machine's anemometer, the wind's force at each measured state (MuJoCo's
+fluid model, bwr_twin.model.wind) is applied to the twin as it runs through the block, and is
+taken from the force the motion needs: the drives did not apply it. Without it a gust on the
+boom reads as a drive fault (a 12 m/s wind raised a false slew derate within 6 s).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import mujoco
 import numpy as np
 
 from bwr_twin.model.machine import Machine
+from bwr_twin.model.wind import wind_forces
 from bwr_twin.shadow.measured import GAP, Measured
 
 BLOCK = 1.0  # s: the length of a block, the resynchronisation window
@@ -60,7 +66,8 @@ class Blocks:
     axis moved over it by the speed feedback (by the twin without it) (m, rad);
     friction, derate, mass: the signatures of a unit friction rise, derate and mass change;
     unseen: how far the speed feedback moved the axis since the encoder's reading last changed
-    in the block (over the whole block if it did not change) (m, rad; None: not known).
+    in the block (over the whole block if it did not change) (m, rad; None: not known);
+    wind: the measured wind's mean force over the block (N, N m; None: not known, as still air).
     """
 
     start: np.ndarray
@@ -75,6 +82,7 @@ class Blocks:
     derate: np.ndarray
     mass: np.ndarray
     unseen: np.ndarray | None = None
+    wind: np.ndarray | None = None
 
 
 class ShadowTwin:
@@ -88,6 +96,7 @@ class ShadowTwin:
         self._model = machine.physics_model()
         self._data = mujoco.MjData(self._model)
         self._actuators = np.array(machine.actuator_ids, dtype=np.int64)
+        self._joints = machine.joint_ids
         self._gear = machine.model.actuator_gear[self._actuators, 0].copy()
         cp_body = int(machine.model.site_bodyid[machine.cp_site])
         body = mujoco.mj_id2name(machine.model, mujoco.mjtObj.mjOBJ_BODY, cp_body)
@@ -111,7 +120,7 @@ class ShadowTwin:
         if not rows:
             empty = np.zeros((0, 3))
             return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, np.zeros((0, 3), bool), empty,
-                          empty, empty, empty, empty)
+                          empty, empty, empty, empty, empty)
         columns = list(zip(*rows))
         return Blocks(*(np.array(c) for c in columns))
 
@@ -122,10 +131,11 @@ class ShadowTwin:
         qdd = (qd[i0 + 1 : i1 + 1] - qd[i0:i1]) / dt
         nominal, heavier = (self._inverse_of(k, m.q[i0:i1], qd[i0:i1], qdd) for k in (0, 1))
         friction_force = self._damping * qd[i0:i1] + self._frictionloss * np.sign(qd[i0:i1])
-        needed = nominal + np.sign(qd[i0:i1]) * self._frictionloss
+        wind = self._wind_on(m, i0, i1, qd)
+        needed = nominal + np.sign(qd[i0:i1]) * self._frictionloss - wind
         force = m.force[i0:i1]
         weights = dt / dt.sum()
-        q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0])
+        q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0], wind)
         span = m.time[i1] - m.time[i0]
         if m.speed is not None:
             steps = m.speed[i0:i1] * dt
@@ -143,7 +153,15 @@ class ShadowTwin:
         return (m.time[i0], m.time[i1], ((needed - force) * weights).sum(axis=0), m.q[i1] - q_end,
                 qd[i1] - qd_end, drift, np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved,
                 -(friction_force * weights).sum(axis=0), -(force * weights).sum(axis=0),
-                -((heavier - nominal) * weights).sum(axis=0), unseen)
+                -((heavier - nominal) * weights).sum(axis=0), unseen, (wind * weights).sum(axis=0))
+
+    def _wind_on(self, m: Measured, i0: int, i1: int, qd: np.ndarray) -> np.ndarray:
+        """(i1 - i0, 3) the measured wind's force on the joints at samples i0 .. i1 - 1 (N, N m);
+        zero in still air or without an anemometer."""
+        if m.wind is None or m.air is None:
+            return np.zeros((i1 - i0, 3))
+        return wind_forces(self._model, self._joints, m.q[i0:i1], qd[i0:i1], m.wind[i0:i1], m.air.heading,
+                           m.air.density)[:, :3]
 
     def _inverse_of(self, which: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         model, data = self._inverse[which], self._inverse_data[which]
@@ -154,14 +172,16 @@ class ShadowTwin:
             out[i] = data.qfrc_inverse[:3]
         return out
 
-    def _predict(self, q0: np.ndarray, qd0: np.ndarray, force: np.ndarray, dt: np.ndarray):
-        """The twin from (q0, qd0) under the forces held for dt each: its end position and speed."""
+    def _predict(self, q0: np.ndarray, qd0: np.ndarray, force: np.ndarray, dt: np.ndarray, wind: np.ndarray):
+        """The twin from (q0, qd0) under the drive forces and the wind's held for dt each: its end
+        position and speed."""
         model, data = self._model, self._data
         mujoco.mj_resetData(model, data)
         data.qpos[:3], data.qvel[:3] = q0, qd0
         step = model.opt.timestep
-        for f, span in zip(force, dt):
+        for f, w, span in zip(force, wind, dt):
             data.ctrl[self._actuators] = f / self._gear
+            data.qfrc_applied[:3] = w
             mujoco.mj_step(model, data, nstep=max(1, round(span / step)))
         return data.qpos[:3].copy(), data.qvel[:3].copy()
 

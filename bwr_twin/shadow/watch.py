@@ -38,16 +38,18 @@ class Watched:
         return sorted(events, key=lambda e: e["time_s"])
 
 
-def learn_from(twin: ShadowTwin, logs: Sequence[Path], per_hour: float) -> Thresholds:
-    """Thresholds from the fault-free logs at `logs`, of one machine."""
-    measured = [read_measured(log, twin.limits) for log in logs]
+def learn_from(twin: ShadowTwin, logs: Sequence[Path], per_hour: float, *, ignore_wind: bool = False) -> Thresholds:
+    """Thresholds from the fault-free logs at `logs`, of one machine (`ignore_wind`: as a shadow
+    without the logs' anemometer would learn them)."""
+    measured = [read_measured(log, twin.limits, wind=not ignore_wind) for log in logs]
     counts = np.min([encoder_counts(m) for m in measured], axis=0)  # the finest step any log saw
     return learn([twin.blocks(m) for m in measured], counts, per_hour)
 
 
-def watch(twin: ShadowTwin, log: Path, thresholds: Thresholds) -> Watched:
-    """The shadow over the log at `log` (a run directory or its timeseries.csv)."""
-    measured = read_measured(log, twin.limits)
+def watch(twin: ShadowTwin, log: Path, thresholds: Thresholds, *, ignore_wind: bool = False) -> Watched:
+    """The shadow over the log at `log` (a run directory or its timeseries.csv); `ignore_wind`:
+    as a shadow without the log's anemometer would watch it."""
+    measured = read_measured(log, twin.limits, wind=not ignore_wind)
     blocks = twin.blocks(measured)
     alarms, health = assess(blocks, thresholds)
     return Watched(measured, blocks, measured.gaps(), alarms, health)
