@@ -101,6 +101,26 @@ def test_a_fault_free_log_raises_nothing(twin, logs, thresholds):
     assert watch(twin, logs["fault_free"], thresholds).alarms == []
 
 
+WINDY = "[plant]\nwind_speed = 12.0\ngust_amplitude = 4.0\nwind_direction = 90.0"  # m/s, m/s, deg
+
+
+def test_a_windy_log_is_read_with_its_wind_and_raises_nothing_but_its_fault(twin, thresholds, tmp_path):
+    """In a 12 m/s wind gusting by 4 m/s (thresholds learned in still air): the log's anemometer
+    column and scene.json's heading and density are read, a fault-free log raises nothing (read
+    without its wind, the wind is taken for a fault), and a slew friction rise is named as such."""
+    calm = _run(tmp_path, "calm", f"[simulation]\nseed = 2\n{WINDY}")
+    watched = watch(twin, calm, thresholds)
+    assert watched.measured.air is not None and watched.measured.air.density == pytest.approx(1.204)
+    assert np.ptp(watched.measured.wind) > 4.0  # the gusts, as the anemometer read them
+    assert watched.alarms == []
+    assert watch(twin, calm, thresholds, ignore_wind=True).alarms != []
+    table, kind, axis, onset, size, share = FAULTS["friction_rise"]
+    faulty = _run(tmp_path, "windy_friction", f"{WINDY}\n[[faults]]\n{table}")
+    first = watch(twin, faulty, thresholds).alarms[0]
+    assert (first.kind, first.axis) == (kind, axis) and first.time_s >= onset, first.describe()
+    assert first.size == pytest.approx(size, rel=share), first.describe()
+
+
 def test_a_gap_is_a_gap_not_an_alarm(twin, logs, thresholds, tmp_path):
     """20 s of the fault-free log lost: one gap event over them, and still no alarm."""
     lines = (logs["fault_free"] / "timeseries.csv").read_text().splitlines()
