@@ -17,10 +17,9 @@ applied: the shadow's twin applies it (bwr_twin.model.wind), or a gust would rea
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
-
-import math
 
 import numpy as np
 
