@@ -79,7 +79,7 @@ def _fit(args: argparse.Namespace) -> int:
         result = fit(problem, iterations=args.iterations, progress=progress)
     _check_same_machine(args.logs[0], args.model, result, problem.motion_rms())
     prediction = _holdout(machine, knobs, holdout, result) if holdout is not None else None
-    text = _calibrated_xml(args.model, args.logs, result)
+    text = calibrated_xml(args.model, args.logs, result)
     with staged_directory(args.out, overwrite=args.overwrite, kind="calibration") as staging:
         (staging / "calibrated.xml").write_text(text)
         Machine(staging / "calibrated.xml")  # it still meets the model contract
@@ -142,7 +142,9 @@ def _unit(column: str) -> str:
     return ("m" if linear else "rad") + ("" if what == "position" else "/s")
 
 
-def _calibrated_xml(model: Path, logs: list[Path], result) -> str:
+def calibrated_xml(model: Path, logs: list[Path], result) -> str:
+    """The text of `model` with the fit's identified parameters written in, each with a comment
+    giving its nominal value and interval; BwrError naming the file if it cannot be edited."""
     from bwr_twin.calibrate.mjcf_edit import edit
 
     date = datetime.date.today().isoformat()
