@@ -242,13 +242,16 @@ def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     return assess(blocks, t)[0]
 
 
-def assess(blocks: Blocks, t: Thresholds, known: list | None = None) -> tuple[list[Alarm], dict[str, float]]:
+def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
+           complete: bool = True) -> tuple[list[Alarm], dict[str, float]]:
     """The alarms over the log's blocks (as `detect`) and the health of each of SOURCES after the
     newest block, in %: 100 less 100 times the largest statistic of its hypotheses against its
     threshold, 0 at a threshold and below; 0 once an alarm named it.
 
     `known`: a list kept between calls over a growing series of blocks (live), which holds the
-    statistics of the blocks seen so far, so that each call computes only the new blocks'."""
+    statistics of the blocks seen so far, so that each call computes only the new blocks'.
+    `complete`: the blocks are the whole log; False (live), a fault detected fewer than ISOLATE
+    blocks ago is not isolated yet, so that live and offline name it on the same evidence."""
     if not len(blocks.start):
         return [], dict.fromkeys(SOURCES, 100.0)
     alarms = _stuck(blocks, t)
@@ -268,8 +271,11 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None) -> tuple[li
     stats = np.array([g for g, _, _ in found])
     raised_at = -math.inf  # s: the last alarm's time; a change that began before it is the fault it named
     raised: set[str] = set()  # each class and axis is raised once
+    last = len(blocks.start) - 1
     for k in np.flatnonzero(ratios.max(axis=0) > 1):
-        k = min(int(k) + ISOLATE, len(blocks.start) - 1)  # isolated on a few blocks more than it was detected on
+        k = _isolated_at(int(k), last, complete)
+        if k is None:
+            break  # live: isolated once the blocks it waits for have come
         best = int(np.argmax(stats[:, k]))
         h = HYPOTHESES[best]
         g, onset, size = (a[k] for a in found[best])
@@ -283,6 +289,14 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None) -> tuple[li
         worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
         health[source] = 0.0 if any(a.axis == source for a in alarms) else 100.0 * max(0.0, 1.0 - float(worst))
     return sorted(alarms, key=lambda a: a.time_s), health
+
+
+def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
+    """The block a fault detected at block `detected` is isolated at: ISOLATE blocks on, or the
+    last block of a complete log; None (live) if that block has not come yet."""
+    if detected + ISOLATE <= last:
+        return detected + ISOLATE
+    return last if complete else None
 
 
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:

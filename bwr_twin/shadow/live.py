@@ -184,7 +184,7 @@ class LiveShadow:
             return
         if self._statistics_for is not self.thresholds:  # thresholds set or changed: start afresh
             self._statistics, self._statistics_for = [], self.thresholds
-        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics)
+        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics, complete=False)
         known = {(a.kind, a.axis) for a in self.alarms}
         for alarm in alarms:
             if (alarm.kind, alarm.axis) not in known:

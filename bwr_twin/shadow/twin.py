@@ -10,7 +10,8 @@ which a shadow does not know before it has watched the machine).
 
 The force residual is MuJoCo's inverse dynamics (`mj_inverse`) on the measured motion less the
 drive's force, per sample and averaged over the block: the force the nominal machine needs to
-move as measured, less what the drive applied. Its mean acceleration over a block is the
+move as measured, less what the drive applied. The MJCF's Coulomb friction is in it as MuJoCo's
+soft friction constraint gives it, as the plant's is. Its mean acceleration over a block is the
 difference of the measured speeds at the block's ends over its length (the per-sample
 differences telescope), so the block's mean is free of the noise of differentiating a
 quantised encoder.
@@ -40,10 +41,10 @@ from bwr_twin.shadow.measured import GAP, Measured
 
 BLOCK = 1.0  # s: the length of a block, the resynchronisation window
 UNIT_MASS = 1000.0  # kg: the mass change a mass signature is of (a tonne at the CP)
-# The inverse dynamics of the free motion: no contacts, joint limits or friction-loss constraints
-# (the nominal Coulomb friction is added in closed form, by the sign of the measured speed).
-_INVERSE_OFF = (mujoco.mjtDisableBit.mjDSBL_CONSTRAINT | mujoco.mjtDisableBit.mjDSBL_CONTACT
-                | mujoco.mjtDisableBit.mjDSBL_LIMIT | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+# The inverse dynamics of the free motion: no contacts or joint limits. The joints' Coulomb
+# friction (`frictionloss`) stays: MuJoCo's inverse of its own soft friction constraint, the
+# force the plant's friction really gives near zero speed, where a sign would overstate it.
+_INVERSE_OFF = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_LIMIT
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,6 @@ class ShadowTwin:
         self._inverse = [self._free(machine.physics_model()), self._free(heavier.physics_model())]
         self._inverse_data = [mujoco.MjData(m) for m in self._inverse]
         self._damping = self._model.dof_damping[:3].copy()
-        self._frictionloss = self._model.dof_frictionloss[:3].copy()
 
     @staticmethod
     def _free(model: mujoco.MjModel) -> mujoco.MjModel:
@@ -129,10 +129,10 @@ class ShadowTwin:
         dt = np.diff(m.time[i0 : i1 + 1])[:, None]
         qd = m.qd if m.speed is None else m.speed  # the drives' feedback: the encoder's filtered speed lags
         qdd = (qd[i0 + 1 : i1 + 1] - qd[i0:i1]) / dt
-        nominal, heavier = (self._inverse_of(k, m.q[i0:i1], qd[i0:i1], qdd) for k in (0, 1))
-        friction_force = self._damping * qd[i0:i1] + self._frictionloss * np.sign(qd[i0:i1])
+        (nominal, coulomb), (heavier, _) = (self._inverse_of(k, m.q[i0:i1], qd[i0:i1], qdd) for k in (0, 1))
+        friction_force = self._damping * qd[i0:i1] + coulomb
         wind = self._wind_on(m, i0, i1, qd)
-        needed = nominal + np.sign(qd[i0:i1]) * self._frictionloss - wind
+        needed = nominal - wind
         force = m.force[i0:i1]
         weights = dt / dt.sum()
         q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0], wind)
@@ -163,14 +163,17 @@ class ShadowTwin:
         return wind_forces(self._model, self._joints, m.q[i0:i1], qd[i0:i1], m.wind[i0:i1], m.air.heading,
                            m.air.density)[:, :3]
 
-    def _inverse_of(self, which: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    def _inverse_of(self, which: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(n, 3) the joint forces that move model `which` as measured (N, N m), its Coulomb
+        friction's part included, and that part alone."""
         model, data = self._inverse[which], self._inverse_data[which]
-        out = np.empty_like(q)
+        out, coulomb = np.empty_like(q), np.empty_like(q)
         for i in range(len(q)):
             data.qpos[:3], data.qvel[:3], data.qacc[:3] = q[i], qd[i], qdd[i]
             mujoco.mj_inverse(model, data)
             out[i] = data.qfrc_inverse[:3]
-        return out
+            coulomb[i] = -data.qfrc_constraint[:3]  # the friction constraint's force, against the motion
+        return out, coulomb
 
     def _predict(self, q0: np.ndarray, qd0: np.ndarray, force: np.ndarray, dt: np.ndarray, wind: np.ndarray):
         """The twin from (q0, qd0) under the drive forces and the wind's held for dt each: its end
