@@ -178,7 +178,7 @@ def _machine_facts(mjcf: Path, stamp: tuple, payloads: tuple) -> _Facts | None:
     from bwr_twin.model.machine import Machine  # compiles MuJoCo models: only for scenes that need it
 
     try:
-        machine = Machine(mjcf, payloads=payloads)
+        machine = Machine.shared(mjcf, payloads)
     except ModelError:
         return None
     g = machine.geometry
@@ -277,7 +277,7 @@ def _axis_facts(mjcf: Path, stamp: tuple):
     from bwr_twin.model.machine import Machine  # compiles MuJoCo models: only for scenes that need it
 
     try:
-        machine = Machine(mjcf)
+        machine = Machine.shared(mjcf)
     except ModelError:
         return None
     rated = [float(v) for v in machine.rated_speed]

@@ -27,6 +27,7 @@ from bwr_twin.model.instruments import BeltScaleSpec, WheelMotorSpec, read_instr
 from bwr_twin.model.scanner import Scanner, read_scanners
 from bwr_twin.model.shapes import read_collision_shapes
 from bwr_twin.model.spec import Drawing, Edits, Heights, Payload, compile_model
+from bwr_twin.textfile import version
 
 AXES = ("travel", "slew", "luff")
 UNITS = ("m", "deg", "deg")  # display units; the code works in SI (m, rad)
@@ -171,6 +172,14 @@ class Machine:
         limits, sensors: the records that hold joint_range, envelope, drive_limits, rated_speed
             (`Limits`) and scanners, belt_scale, wheel_motor (`Sensors`), which read through them.
     """
+
+    @classmethod
+    def shared(cls, path: str | Path, payloads: Sequence[Payload] = ()) -> Machine:
+        """The machine of `path` with `payloads`, compiled once per version of the file and shared
+        by whoever asks for the same: a scene's checks, its plan, its plant without a pile and its
+        controller's belief. Read it, never change it."""
+        path = Path(path)
+        return _shared(path, version(path), tuple(payloads))
 
     def __init__(self, path: str | Path, *, payloads: Sequence[Payload] = (), stockpile: Heights | None = None,
                  stockpile_drawing: Drawing | None = None):
@@ -473,6 +482,12 @@ class Machine:
 
     def __repr__(self) -> str:
         return f"Machine({str(self.path)!r})"
+
+
+@functools.lru_cache(maxsize=8)
+def _shared(path: Path, stamp: tuple, payloads: tuple) -> Machine:
+    """Machine.shared's compile, once per file version (`stamp`) and payloads."""
+    return Machine(path, payloads=payloads)
 
 
 @numba.njit(cache=True)

@@ -68,7 +68,7 @@ def survey_plan(scene: Scene) -> BenchPlan | None:
     reclaim = scene.reclaim
     if reclaim.survey is None:
         return None
-    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload)
+    machine = Machine.shared(scene.machine.mjcf, scene.plant.payload)
     where = f"{scene.path}: [reclaim]"
     planner = _Planner(reclaim, machine, None, scene.stockpile.bulk_density, scene.simulation.control_period, where)
     moves, q = [], planner.start.q
@@ -115,7 +115,7 @@ def after_survey(survey: BenchPlan, benches: BenchPlan) -> BenchPlan:
 @functools.lru_cache(maxsize=8)
 def _plan(reclaim: ReclaimSection, stockpile: StockpileSection, mjcf: Path, payload: tuple, period: float,
           scene_path: Path, start: tuple | None = None, elapsed: float = 0.0) -> BenchPlan:
-    machine = Machine(mjcf, payloads=payload)
+    machine = Machine.shared(mjcf, payload)
     surface = build_surface(stockpile, scene_path)
     where = f"{scene_path}: [reclaim]"
     return _Planner(reclaim, machine, surface, stockpile.bulk_density, period, where,

@@ -64,8 +64,9 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     runs = len(scenes)
     parameters = RunParameters.of(scenes)
     surface = build_surface(scene.stockpile, scene.path) if scene.stockpile is not None else None
-    machine = Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface,
-                      stockpile_drawing=scene.stockpile)
+    machine = (Machine(scene.machine.mjcf, payloads=scene.plant.payload, stockpile=surface,
+                       stockpile_drawing=scene.stockpile) if surface is not None
+               else Machine.shared(scene.machine.mjcf, scene.plant.payload))
     faults = Faults(scene.faults, parameters.seed, period)
     scanners = active_scanners(scene, machine) if surface is not None else ()
     check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
@@ -123,7 +124,7 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
         plant_faults = PlantFaults(scene.faults, machine, plant.batch, period)
         if plant_faults.active:
             order.append(stages.PlantFaultsStage(plant_faults, plant))
-    return Parts(machine=machine, belief_machine=Machine(scene.controller_mjcf), tracking=tracking, plant=plant,
+    return Parts(machine=machine, belief_machine=Machine.shared(scene.controller_mjcf), tracking=tracking, plant=plant,
                  parameters=parameters, nthread=nthread, stages=tuple(order), faults=faults, reclaim=reclaim,
                  scanning=scanning, instruments=instruments, neighbour=neighbour, stacking=stacking)
 

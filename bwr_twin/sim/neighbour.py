@@ -40,7 +40,7 @@ class Neighbour:
         """Raises ModelError for a file that breaks the model contract and EnvelopeError, naming
         the scene and the schedule's step, for a schedule outside the neighbour's envelope."""
         section = scenes[0].neighbour
-        self.machine = machine = Machine(section.mjcf)
+        self.machine = machine = Machine.shared(section.mjcf)
         self.period, self.report_delay = period, section.report_delay
         self._schedules = [neighbour_schedule(scene, machine) for scene in scenes]
         self.start = np.array([schedule.sample(0.0)[0] for schedule in self._schedules])
