@@ -6,8 +6,7 @@ false alarms with the nominal MJCF and with the calibrated one.
 
 Each variant is tools/calibration_study.py's (its damping, drive inertia, Coulomb friction and
 counterweight moved 10-50 %, seeded), calibrated as that study does (a 10-minute planned test,
-logged at 10 Hz in a gusty wind) with every parameter but the luff's drive inertia, which the fit
-does not yet find (docs/calibration.md). Then, as tools/shadow_study.py does on bwr_heavy.xml,
+logged at 10 Hz in a gusty wind) with every parameter that study fits. Then, as tools/shadow_study.py does on bwr_heavy.xml,
 the variant runs scenes/heavy_shadow.toml's path in its own weather: an hour of fault-free logs
 that both shadows learn their thresholds from, --seeds runs of each fault class, and
 --fault-free-hours of fault-free logs for the false alarms. Each log is watched twice, by the
@@ -32,9 +31,6 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.shadow.twin import ShadowTwin
 from bwr_twin.shadow.watch import learn_from, watch
 
-FITTED = [p for p in PARAMS if p != "luff_armature"]  # docs/calibration.md: the luff's drive inertia is left out
-
-
 def calibrate(folder: Path, rng: np.random.Generator) -> tuple[Path, Path]:
     """A variant machine and its MJCF calibrated from the nominal one on its test's log; also the
     variant's shadow scene (heavy_shadow.toml on it, with its Coulomb friction)."""
@@ -44,7 +40,7 @@ def calibrate(folder: Path, rng: np.random.Generator) -> tuple[Path, Path]:
     test = folder / "test.toml"
     test.write_text(imperfect(scene_text(machine, mjcf, test, 10.0), 1.0) + plant)
     nominal = Machine(HEAVY)
-    result = fit(Problem(nominal, catalogue(nominal, FITTED), [log_of(test, rng)]))
+    result = fit(Problem(nominal, catalogue(nominal, PARAMS), [log_of(test, rng)]))
     calibrated = folder / "calibrated.xml"
     calibrated.write_text(calibrated_xml(HEAVY, [test], result))
     shadow_scene = folder / "shadow.toml"
