@@ -135,7 +135,7 @@ def _name(h: _Hypothesis) -> str:
 
 def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.ndarray]:
     """(residual, signature) of a hypothesis, each (blocks,) in units of the noise, the
-    fault-free machine's share (`_biased`) taken off the residual."""
+    fault-free machine's share (of `_raw`'s third) taken off the residual."""
     r, s, biased = _raw(blocks, t, h)
     return r - t.bias.get(_name(h), 0.0) * biased, s
 
