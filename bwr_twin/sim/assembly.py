@@ -1,6 +1,6 @@
 """A lockstep's parts, built once from its scenes: the machine, the reference, the plant, the
-world models and the stages that bind them to the control period, in the order they run
-(bwr_twin.sim.stages)."""
+world models, the stages that bind them to the control period, in the order they run
+(bwr_twin.sim.stages), and the watchers that only watch (bwr_twin.sim.watchers)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import RateInstruments, rate_instruments, rate_loop_reads_instruments
 from bwr_twin.sensing.scan_account import ScanAccount
 from bwr_twin.sensing.scanning import Scanning, active_scanners, pile_model
-from bwr_twin.sim import stages
+from bwr_twin.sim import stages, watchers
 from bwr_twin.sim.disturbances import Disturbances
 from bwr_twin.sim.encoders import Encoders
 from bwr_twin.sim.neighbour import Neighbour
@@ -45,6 +45,7 @@ class Parts:
     parameters: RunParameters  # what may differ between the runs: seeds, gains, wind, ...
     nthread: int  # threads the plant and the controller may use
     stages: tuple[stages.Stage, ...]  # in the order they run in each period
+    watchers: tuple[watchers.Watcher, ...]  # what only watches (none when the runs are not observed)
     faults: Faults  # the scene's scheduled faults; `faults.acting(k)` says which act in period k
     reclaim: Reclaim | None = None  # the piles being dug
     scanning: Scanning | None = None  # the runs' scanners and the piles they know from them
@@ -54,10 +55,11 @@ class Parts:
 
 
 def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | None = None,
-             keep_scans: bool = True) -> Parts:
+             observe: bool = True) -> Parts:
     """The parts of a lockstep of `scenes` (which share a lockstep key) on `nthread` threads (0:
-    all cores); `frame_every`: keep the pile every that many control periods, for a replay.
-    Raises BwrError if the path, a model or the stockpile is bad."""
+    all cores); `frame_every`: keep the pile every that many control periods, for a replay;
+    `observe=False`: no watchers, and only each scanner's latest scan kept, for a driver that
+    keeps no results. Raises BwrError if the path, a model or the stockpile is bad."""
     scene = scenes[0]
     sim = scene.simulation
     period = sim.control_period
@@ -72,7 +74,7 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     check_fault_scanners(scene.path, scene.faults, [s.name for s in scanners], scene.machine.mjcf)
     instruments = rate_instruments(scene, machine, parameters.seed, period)
     reclaim = Reclaim(scenes, machine, surface, period) if surface is not None else None
-    scanning = (Scanning(scanners, surface, parameters.seed, period, keep_scans=keep_scans, faults=faults)
+    scanning = (Scanning(scanners, surface, parameters.seed, period, keep_scans=observe, faults=faults)
                 if scanners else None)
     if scene.reclaim is not None:
         scanned = pile_model(scene, scanners) == "scanned"
@@ -86,6 +88,12 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     stacking = (Stacking(scenes, machine, tracking.pattern, period, (tracking.samples - 1) * period, frame_every)
                 if scene.stacking is not None else None)
     neighbour = Neighbour(scenes, period) if scene.neighbour is not None else None
+    if neighbour is not None:
+        bare = [m.path.name for m in (machine, neighbour.machine) if not m.collision_shapes]
+        if bare:
+            raise SceneError(f"{scene.path}: [neighbour]: the machines' clearance needs both to have collision "
+                             f"shapes, but {' and '.join(bare)} has none (geoms 'collision_<part>' in group 5, "
+                             "docs/anticollision.md)")
     nthread = min(nthread or os.cpu_count() or 1, runs)
     plant = Plant(machine, parameters, q0=tracking.start, timestep=sim.timestep, control_period=period,
                   nthread=nthread, neighbour=neighbour)
@@ -101,16 +109,6 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
     if scanning is not None:
         order.append(stages.ScanningStage(scanning, ScanAccount(scanning, reclaim.density), reclaim, plant,
                                           tracking.survey_end, (tracking.samples - 1) * period))
-    if reclaim is not None and machine.collision_shapes:
-        order.append(stages.PileClearanceStage(PileClearance(machine.collision_shapes, surface, runs, period),
-                                               reclaim, plant))
-    if neighbour is not None:
-        bare = [m.path.name for m in (machine, neighbour.machine) if not m.collision_shapes]
-        if bare:
-            raise SceneError(f"{scene.path}: [neighbour]: the machines' clearance needs both to have collision "
-                             f"shapes, but {' and '.join(bare)} has none (geoms 'collision_<part>' in group 5, "
-                             "docs/anticollision.md)")
-        order.append(stages.MachineClearanceStage(MachineClearance(machine, neighbour.machine, runs, period), plant))
     if stacking is not None:
         order.append(stages.StackingStage(stacking, plant))
     if reclaim is not None:
@@ -125,8 +123,22 @@ def assemble(scenes: Sequence[Scene], *, nthread: int = 0, frame_every: int | No
         if plant_faults.active:
             order.append(stages.PlantFaultsStage(plant_faults, plant))
     return Parts(machine=machine, belief_machine=Machine.shared(scene.controller_mjcf), tracking=tracking, plant=plant,
-                 parameters=parameters, nthread=nthread, stages=tuple(order), faults=faults, reclaim=reclaim,
-                 scanning=scanning, instruments=instruments, neighbour=neighbour, stacking=stacking)
+                 parameters=parameters, nthread=nthread, stages=tuple(order),
+                 watchers=_watchers(scene, machine, surface, runs, plant, reclaim, neighbour) if observe else (),
+                 faults=faults, reclaim=reclaim, scanning=scanning, instruments=instruments, neighbour=neighbour,
+                 stacking=stacking)
+
+
+def _watchers(scene: Scene, machine: Machine, surface, runs: int, plant: Plant, reclaim: Reclaim | None,
+              neighbour: Neighbour | None) -> tuple[watchers.Watcher, ...]:
+    """The clearance monitors: the shapes against the pile, where there is one, and against the
+    neighbour, whose machine must then have shapes too."""
+    period, found = scene.simulation.control_period, []
+    if reclaim is not None and machine.collision_shapes:
+        found.append(watchers.PileWatch(PileClearance(machine.collision_shapes, surface, runs, period), reclaim, plant))
+    if neighbour is not None:
+        found.append(watchers.MachineWatch(MachineClearance(machine, neighbour.machine, runs, period), plant))
+    return tuple(found)
 
 
 def _interlock(scene: Scene, machine: Machine, surface, runs: int, tracking, plant: Plant, reclaim: Reclaim | None,

@@ -13,7 +13,8 @@ reads `reference_now()` and calls `advance(command)`, and sees the machine only 
 read-only views. Each period's raw signals go into the loop's block of rows
 (`bwr_twin.sim.block`); an observer (`bwr_twin.sim.observer`) reduces each full block into the
 metrics and the record. Every optional part of the world is a stage the loop walks in order
-(`bwr_twin.sim.stages`).
+(`bwr_twin.sim.stages`); what only watches, the clearance monitors, is an observer too
+(`bwr_twin.sim.watchers`).
 """
 
 from __future__ import annotations
@@ -142,13 +143,12 @@ def simulate_lockstep(
 
 
 class Lockstep:
-    """The runs of one lockstep, advanced a control period at a time by whoever computes the
-    drive forces.
+    """The runs of one lockstep, advanced a control period at a time by whoever computes the drive forces.
 
     Each period k: `measure()` gives the encoders' reading, `reference_now()` the reference
     and `advance(command)` holds the drive forces for the period. After the last period
-    (`done`), `results()` gives each run's result. The loop itself only walks its stages
-    (bwr_twin.sim.stages), built once from the scenes (bwr_twin.sim.assembly).
+    (`done`), `results()` gives each run's result. The loop itself only walks its stages and
+    watchers (bwr_twin.sim.stages, bwr_twin.sim.watchers), built once (bwr_twin.sim.assembly).
 
     Attributes:
         machine: the plant's machine; `belief_machine` the controller's.
@@ -164,15 +164,15 @@ class Lockstep:
     def __init__(self, scenes: Sequence[Scene], *, nthread: int = 0, pile_frame_period: float | None = None,
                  observe: bool = True):
         """Raises BwrError if the path, a model or the stockpile is bad. `pile_frame_period` (s):
-        keep the pile as it is dug that often, for a replay. `observe=False`: no metrics and no
-        record (a driver that keeps its own, such as a learning agent's environment)."""
+        keep the pile as it is dug that often, for a replay. `observe=False`: no metrics, no
+        record and no watchers (a driver that keeps its own, such as a learning agent's environment)."""
         if len({lockstep_key(s) for s in scenes}) != 1:
             raise ValueError("the scenes of a lockstep must share their lockstep_key")
         self.scenes = list(scenes)
         sim = scenes[0].simulation
         self.period = period = sim.control_period
         frame_every = max(round(pile_frame_period / period), 1) if pile_frame_period else None
-        self._parts = parts = assemble(scenes, nthread=nthread, frame_every=frame_every, keep_scans=observe)
+        self._parts = parts = assemble(scenes, nthread=nthread, frame_every=frame_every, observe=observe)
         self.machine, self.belief_machine, self.tracking = parts.machine, parts.belief_machine, parts.tracking
         self._plant = plant = parts.plant
         self.samples = self.tracking.samples
@@ -296,6 +296,8 @@ class Lockstep:
         if first_non_finite(applied) >= 0:
             self._stop_non_finite(applied)
         phase = tracking.phase()
+        for watcher in self._parts.watchers:  # before the world acts on the period
+            watcher.watch(k, row)
         for stage in hooks.world:
             stage.world(k, row)
         if hooks.drives:  # the drives apply the command, unless a stage overrides it
@@ -365,11 +367,11 @@ class Lockstep:
         return None
 
     def _result(self, run: int) -> RunResult:
-        """Run `run`'s result: the observer's metrics and record, with each stage's share."""
+        """Run `run`'s result: the observer's metrics and record, with each watcher's and stage's share."""
         scene, stages, recorder = self.scenes[run], self._hooks, self._observer.recorder
         metrics = self._observer.metrics.result(run, self.time)
-        for stage in stages.metrics:
-            stage.metrics(run, metrics)
+        for part in (*self._parts.watchers, *stages.metrics):  # the watchers' first: the interlock adds to theirs
+            part.metrics(run, metrics)
         if "reclaim" in metrics:  # how the run carried out its plan
             metrics["reclaim"].update(self.tracking.reclaim_metrics(run))
         metrics["run"] = {

@@ -7,9 +7,8 @@ the loop (bwr_twin.sim.lockstep) calls, stage after stage:
    automation measures and hears (the encoders, their faults, the neighbour's report, the
    interlock's decision);
 2. `world(k, row)`: before the physics step, with the true state at the period's start; the
-   world's forces on the machine and what watches it (disturbances, scans, clearances, the
-   stacking stream, the cut and the belt, the instruments). The clearance monitors only read:
-   they see the pile as dug before this period's cut, so they run among the world's stages;
+   world's forces on the machine and what senses it (disturbances, scans, the stacking stream,
+   the cut and the belt, the instruments);
 3. `drives(k, applied)`: the (runs, 3) forces the drives apply where they do not apply the
    command (a quick stop, a tripped drive);
 4. `stepped(k, row)`: after the physics step, with the period's end state;
@@ -20,7 +19,8 @@ RunResult. A stage implements only the hooks it needs; the loop calls only those
 
 The world models themselves (bwr_twin.stockpile, bwr_twin.sensing, bwr_twin.collision) know
 nothing of the loop and keep no results: the stages here bind them to it, and their accounts
-(bwr_twin.stockpile.reclaim_account, bwr_twin.sensing.scan_account) keep what they did.
+(bwr_twin.stockpile.reclaim_account, bwr_twin.sensing.scan_account) keep what they did. What
+only watches, the clearance monitors, is no stage but an observer (bwr_twin.sim.watchers).
 """
 
 from __future__ import annotations
@@ -31,8 +31,6 @@ from typing import NamedTuple
 import numpy as np
 
 from bwr_twin.collision.guard import Guard
-from bwr_twin.collision.machines import MachineClearance
-from bwr_twin.collision.monitor import WATCH, PileClearance
 from bwr_twin.config.scene import Scene
 from bwr_twin.sensing.faults import Faults
 from bwr_twin.sensing.rate_instruments import RateInstruments
@@ -176,42 +174,6 @@ class ScanningStage(Stage):
 
     def result(self, run: int, result: RunResult, recorder: Recorder) -> None:
         result.scan = self._account.record(run, self._duration)
-
-
-class PileClearanceStage(Stage):
-    """The machine's collision shapes against the pile as dug (bwr_twin.collision.monitor)."""
-
-    def __init__(self, clearance: PileClearance, reclaim: Reclaim, plant: Plant):
-        self._clearance, self._reclaim, self._plant = clearance, reclaim, plant
-
-    def world(self, k: int, row: Row) -> None:
-        self._clearance.step(k, row.q, row.qd, self._reclaim.heights, self._plant.alive)
-
-    def metrics(self, run: int, metrics: dict) -> None:
-        metrics["collision"] = self._clearance.metrics(run)
-
-
-class MachineClearanceStage(Stage):
-    """The two machines' collision shapes against each other (bwr_twin.collision.machines)."""
-
-    def __init__(self, clearance: MachineClearance, plant: Plant):
-        self._clearance, self._plant = clearance, plant
-        self._periods = 0
-
-    def world(self, k: int, row: Row) -> None:
-        plant = self._plant
-        self._clearance.step(k, row.q, row.qd, plant.neighbour_q, plant.neighbour_qd, plant.alive)
-
-    def finish(self, k: int) -> None:
-        self._periods = k
-
-    def metrics(self, run: int, metrics: dict) -> None:
-        collision = metrics.setdefault("collision", {"watch_m": WATCH, "pile": {}, "contacts": [], "interventions": [],
-                                                     "periods": self._periods, "measured_periods": 0})
-        pairs, contacts = self._clearance.metrics(run)
-        collision["machines"] = pairs
-        collision["contacts"] = sorted(collision["contacts"] + contacts, key=lambda e: e["time_s"])
-        collision["machine_measured_periods"] = int(self._clearance.measured_periods[run])
 
 
 class StackingStage(Stage):
