@@ -118,8 +118,8 @@ def variant(folder: Path, rng: np.random.Generator) -> tuple[Path, dict[str, flo
     return path, truth, [truth[f"{a}_frictionloss"] for a in AXES]
 
 
-def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
-    """The twin's log of the scene resampled to SAMPLE_RATE, with TORQUE_NOISE: the encoders, the
+def log_of(scene_path: Path, rng: np.random.Generator, torque_noise: float = TORQUE_NOISE) -> MachineLog:
+    """The twin's log of the scene resampled to SAMPLE_RATE, with `torque_noise` (of the drive rating, 1 sigma): the encoders, the
     speed and the wind read at each sample, the drive force its mean over the sample period
     centred on it (a historian's average; a drive fighting friction chatters at the control rate,
     and a reading of it every 0.1 s aliases that into the log); the wind's heading and air
@@ -132,7 +132,7 @@ def log_of(scene_path: Path, rng: np.random.Generator) -> MachineLog:
     window = rows[:, None] + np.arange(-(every // 2), every - every // 2)  # the periods centred on each row
     mean = result.drive_force[window].mean(axis=1)
     rating = np.abs(machine.drive_limits).max(axis=1)
-    force = mean + rng.normal(size=mean.shape) * TORQUE_NOISE * rating
+    force = mean + rng.normal(size=mean.shape) * torque_noise * rating
     return MachineLog(path=scene_path, time=result.time[rows], q=result.q_measured[rows], force=force,
                       qd=result.qd_measured[rows], wind=result.wind_speed[rows],
                       wind_heading=np.radians(scene.plant.wind_direction), air_density=scene.plant.air_density)
