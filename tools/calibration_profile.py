@@ -43,7 +43,8 @@ def main() -> None:
     mjcf, truth, friction = variant(args.out, rng)
     plant = PLANT.format(friction=", ".join(f"{f:.6g}" for f in friction))
     if args.still_air:
-        plant = plant.replace("wind_speed = 10.0", "wind_speed = 0.0").replace("gust_amplitude = 2.5", "gust_amplitude = 0.0")
+        plant = (plant.replace("wind_speed = 10.0", "wind_speed = 0.0")
+                 .replace("gust_amplitude = 2.5", "gust_amplitude = 0.0"))
     test = args.out / "test.toml"
     test.write_text(imperfect(scene_text(Machine(mjcf), mjcf, test, 10.0), args.disturbance) + plant)
     log = log_of(test, rng, torque_noise=args.torque_noise)
