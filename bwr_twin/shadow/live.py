@@ -15,6 +15,7 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -28,6 +29,25 @@ from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
 RETRY = 1.0  # s between attempts to reach a lost source
 REQUEST_TIMEOUT = 60.0  # s an OPC UA request may take on a busy machine
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One read of every tag the map names."""
+
+    time: float  # s, the PLC's
+    position: np.ndarray  # (3,) m, rad, rad: the encoders
+    speed: np.ndarray  # (3,) m/s, rad/s, rad/s: the speed feedback
+    force: np.ndarray  # (3,) N, N m, N m: the drives' force, held over the period that ended at `time`
+    wind: float | None = None  # m/s: the anemometer's, over the same period, where the map names it
+
+    @classmethod
+    def of(cls, values: Sequence[float]) -> Sample:
+        """From the tags' values in Tags.nodes()'s order."""
+        row = np.asarray(values, dtype=float)
+        axes = row[1:10].reshape(3, 3)  # per axis: position, speed, force
+        return cls(float(row[0]), axes[:, 0].copy(), axes[:, 1].copy(), axes[:, 2].copy(),
+                   float(row[10]) if len(row) > 10 else None)
 
 
 class Source:
@@ -58,11 +78,9 @@ class Source:
             raise
         self._client, self._nodes = client, nodes
 
-    async def read(self) -> np.ndarray:
-        """(10,) the time (s), then per axis position, speed and force; (11,) with the wind's speed
-        (m/s) last, where the tag map names the anemometer."""
-        values = await self._client.read_values(self._nodes)
-        return np.array(values, dtype=float)
+    async def read(self) -> Sample:
+        """Every tag, in one Read request."""
+        return Sample.of(await self._client.read_values(self._nodes))
 
     async def close(self) -> None:
         if self._client is not None:
@@ -119,7 +137,7 @@ class LiveShadow:
     def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None],
                  air: Air | None = None):
         self._twin, self.thresholds, self._say, self._air = twin, thresholds, say, air
-        self._samples: list[np.ndarray] = []
+        self._samples: list[Sample] = []
         self._done = 0  # the first sample of the block not yet handed to the twin
         self._blocks: list[Blocks] = []
         self.alarms: list[Alarm] = []
@@ -131,13 +149,13 @@ class LiveShadow:
     @property
     def time(self) -> float:
         """s: the newest sample's time; 0 before the first."""
-        return float(self._samples[-1][0]) if self._samples else 0.0
+        return self._samples[-1].time if self._samples else 0.0
 
-    def add(self, sample: np.ndarray, detect: bool = True) -> bool:
-        """One sample (10,) or (11,) as Source.read gives it; one whose time has not moved on adds nothing.
+    def add(self, sample: Sample, detect: bool = True) -> bool:
+        """One sample; one whose time has not moved on adds nothing.
         True if it completed a block, whose detectors have run unless `detect` is False (then
         call `detect()`)."""
-        if self._samples and sample[0] <= self._samples[-1][0]:
+        if self._samples and sample.time <= self._samples[-1].time:
             return False
         self._samples.append(sample)
         made = self._advance()
@@ -149,19 +167,22 @@ class LiveShadow:
         """The samples from `start` on but the newest, whose force (and wind) the next sample
         reads: a force tag gives the force held over the period that ended at its sample's time,
         and so does the anemometer."""
-        rows = np.array(self._samples[start:])
-        axes = rows[:, 1:10].reshape(len(rows), 3, 3)
-        period = float(np.median(np.diff(rows[:, 0]))) if len(rows) > 1 else 1.0
-        windy = self._air is not None and rows.shape[1] > 10
-        return Measured(rows[:-1, 0], axes[:-1, :, 0], axes[:-1, :, 1], axes[1:, :, 2], period, axes[:-1, :, 1],
-                        rows[1:, 10] if windy else None, self._air if windy else None)
+        samples = self._samples[start:]
+        time = np.array([s.time for s in samples])
+        position, speed = np.array([s.position for s in samples]), np.array([s.speed for s in samples])
+        force = np.array([s.force for s in samples])
+        period = float(np.median(np.diff(time))) if len(samples) > 1 else 1.0
+        windy = self._air is not None and samples[0].wind is not None
+        wind = np.array([s.wind for s in samples[1:]]) if windy else None
+        return Measured(time[:-1], position[:-1], speed[:-1], force[1:], period, speed[:-1], wind,
+                        self._air if windy else None)
 
     def _advance(self) -> bool:
         samples = self._samples
         if len(samples) >= 3:
-            steps = np.diff([s[0] for s in samples[-3:]])
+            steps = np.diff([s.time for s in samples[-3:]])
             if steps[1] > GAP * steps[0]:  # the newest step is a gap: nothing before it makes a block with what follows
-                gap = (float(samples[-2][0]), float(samples[-1][0]))
+                gap = (samples[-2].time, samples[-1].time)
                 self.gaps.append(gap)
                 self._say({"event": "gap", "time_s": gap[0], "from_s": gap[0], "to_s": gap[1],
                            "meaning": "no samples: nothing is concluded over it"})
@@ -198,9 +219,9 @@ class LiveShadow:
     def position(self, t: float) -> np.ndarray:
         """(3,) the encoders' reading at the sample of time `t` (m, rad, rad)."""
         for sample in reversed(self._samples):
-            if sample[0] <= t:
-                return sample[1:10:3].copy()
-        return self._samples[0][1:10:3].copy()
+            if sample.time <= t:
+                return sample.position.copy()
+        return self._samples[0].position.copy()
 
     def blocks(self) -> Blocks:
         """Every block so far."""
