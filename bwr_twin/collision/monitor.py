@@ -59,7 +59,10 @@ class PileClearance:
         """Period k: the shapes where the true joints q (runs, 3) put them, moving at qd, against
         the piles' heights (runs, ny, nx) as dug until now; only the `runs` given (None: all)."""
         order = self._all if runs is None else runs
-        self.periods[order] += 1
+        if runs is None:
+            self.periods += 1
+        else:
+            self.periods[runs] += 1
         m = self._mounted
         if not _clearances(heights, *self._grid, order, q, qd, self.period, self.levers,
                            m.kinds, m.halves, m.positions, m.rotations, m.joints, m.anchor,

@@ -72,6 +72,7 @@ class Cutter:
                                 YARD_FLOOR])
         # Per run, where its wheel was when the cells near it were gathered (NaN: never).
         self._near = np.full((runs, _NEAR), np.nan)
+        self._all = np.arange(runs)
 
     def cut(self, cp: np.ndarray, slew: np.ndarray, runs: np.ndarray | None = None) -> Cut:
         """Lower every run's pile to its wheel's envelope, the wheel centred at cp (runs, 3) with
@@ -79,7 +80,7 @@ class Cutter:
         count = len(self.heights)
         out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count),
                   np.full((count, 4), -1, dtype=np.int64))
-        order = np.arange(count) if runs is None else np.asarray(runs, dtype=np.int64)
+        order = self._all if runs is None else np.asarray(runs, dtype=np.int64)
         _cut(self.heights, self._x, self._y, np.ascontiguousarray(cp, dtype=float),
              np.ascontiguousarray(slew, dtype=float), order, self._near, self._shape,
              out.volume, out.depth, out.centroid, out.side, out.cells)

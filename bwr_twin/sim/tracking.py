@@ -266,7 +266,7 @@ class SlewTrim:
             trim = checked(self._label, "trim", call(self._label, self._rate_control.trim, "trim", time, signals),
                            (len(signals.belt_rate),), time)
         low, high = self._limits  # an external trim is clipped to them; NaN lies within none
-        if not ((trim >= low - 1e-9) & (trim <= high + 1e-9)).all():
+        if not all(low - 1e-9 <= t <= high + 1e-9 for t in trim.tolist()):  # per period: scalars, not array ops
             if not np.isfinite(trim).all():
                 raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must be finite")
             raise PluginError(f"{self._label}: trim() returned {trim} at t = {time:.2f} s; trims must lie within "
