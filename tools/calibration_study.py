@@ -6,6 +6,7 @@ the calibrated and the nominal model predict a held-out log (another path, anoth
 loop over 60 s windows. Prints the targets table.
 
     python tools/calibration_study.py [--variants 20] [--minutes 10] [--seed 1] [--out out/calibration_study]
+    python tools/calibration_study.py --report out/calibration_study/study.json   # its tables again
 """
 
 from __future__ import annotations
@@ -163,7 +164,12 @@ def main() -> None:
     parser.add_argument("--disturbance", type=float, default=1.0,
                         help="share of the random disturbance forces (scenes/heavy_shadow.toml's) in the logs (default 1)")
     parser.add_argument("--out", type=Path, default=Path("out/calibration_study"))
+    parser.add_argument("--report", type=Path, metavar="STUDY_JSON",
+                        help="print the tables of a finished study (its study.json) and stop")
     args = parser.parse_args()
+    if args.report is not None:
+        report(json.loads(args.report.read_text()))
+        return
     rng = np.random.default_rng(args.seed)
     rows, ratios, seconds = [], [], []
     for v in range(args.variants):
@@ -196,11 +202,18 @@ def main() -> None:
         print(f"variant {v + 1}: fit {seconds[-1]:.0f} s; held-out RMS ratio per axis "
               f"{', '.join(f'{r:.1f}x' for r in ratios[-1])}; worst errors "
               + ", ".join(f"{r['name']} {100 * r['error']:+.0f} %" for r in rows[-len(knobs):]), flush=True)
-    (args.out / "study.json").write_text(json.dumps({"rows": rows, "ratios": np.array(ratios).tolist(),
-                                                     "seconds": seconds}, indent=1))
+    study = {"rows": rows, "ratios": np.array(ratios).tolist(), "seconds": seconds,
+             "variants": args.variants, "minutes": args.minutes, "disturbance": args.disturbance}
+    (args.out / "study.json").write_text(json.dumps(study, indent=1))
     print()
-    print(f"{args.variants} variants, {args.minutes:g}-minute tests at 10 Hz, {args.disturbance:g} x the random "
-          "disturbance forces, 10 m/s gusty wind")
+    report(study)
+
+
+def report(study: dict) -> None:
+    """The targets table of a study (study.json), then each parameter's errors and intervals."""
+    rows, ratios, seconds = study["rows"], np.array(study["ratios"]), study["seconds"]
+    print(f"{study['variants']} variants, {study['minutes']:g}-minute tests at 10 Hz, {study['disturbance']:g} x the "
+          "random disturbance forces, 10 m/s gusty wind")
     print(f"{'figure':58s} {'target':14s} {'measured':22s} holds")
     for kind, tolerance in TOLERANCE.items():
         mine = [r for r in rows if r["kind"] == kind]
@@ -212,12 +225,23 @@ def main() -> None:
     covered = [r["covered"] for r in rows if r["identifiable"]]
     share = float(np.mean(covered)) if covered else 0.0
     print(f"{'95 % interval covers the truth':58s} {'>= 90 %':14s} {share:.0%} {'':17s} {'yes' if share >= 0.9 else 'no'}")
-    worst = np.array(ratios).min(axis=0)
+    worst = ratios.min(axis=0)
     print(f"{'held-out 60 s RMS, nominal / calibrated, worst per axis':58s} {'>= 5x':14s} "
           f"{', '.join(f'{r:.1f}x' for r in worst):22s} {'yes' if (worst >= 5).all() else 'no'}")
     print(f"{'fit of a 10-minute log at 10 Hz, slowest':58s} {'<= 180 s':14s} {max(seconds):.0f} s {'':17s} "
           f"{'yes' if max(seconds) <= 180 else 'no'}")
-
+    print()
+    print(f"{'parameter':26s} {'within':>8s} {'covered':>8s} {'errors, %':>16s}  variants outside the target (error, %)")
+    for name in dict.fromkeys(r["name"] for r in rows):
+        mine = [r for r in rows if r["name"] == name]
+        tolerance = TOLERANCE[mine[0]["kind"]]
+        errors = [100 * r["error"] for r in mine]
+        outside = [f"{r['variant']} ({100 * r['error']:+.0f})" for r in mine if abs(r["error"]) > tolerance]
+        print(f"{name:26s} {sum(abs(r['error']) <= tolerance for r in mine):4d}/{len(mine):<3d} "
+              f"{sum(r['covered'] for r in mine):4d}/{len(mine):<3d} {min(errors):+7.0f} {max(errors):+7.0f}  "
+              + ", ".join(outside))
+    print(f"{'held-out ratio per axis':26s} " + "; ".join(
+        f"{axis} {ratios[:, a].min():.1f}x to {ratios[:, a].max():.1f}x" for a, axis in enumerate(AXES)))
 
 if __name__ == "__main__":
     main()
