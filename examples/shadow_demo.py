@@ -25,7 +25,7 @@ from asyncua import Client
 from heavy_plc import HeavyPlc
 
 from bwr_twin.shadow.detect import learn
-from bwr_twin.shadow.live import LiveShadow, Source, poll_once
+from bwr_twin.shadow.live import LiveShadow, Source, read_once
 from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import ShadowTwin
@@ -49,7 +49,7 @@ async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
         plc = await HeavyPlc.attach(connection, STEP, PERIOD)
         for cycle in range(round(SECONDS / (STEP * PERIOD))):
             await plc.cycle()
-            await poll_once(source, shadow, print, [view])
+            await read_once(source, shadow, print, [view])
             if shadow.thresholds is None and shadow.time >= LEARN:
                 shadow.thresholds = learn([shadow.blocks()], encoder_counts(shadow.measured()), 0.01)
                 print(f"thresholds learned on the first {LEARN:g} s; watching", flush=True)

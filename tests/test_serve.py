@@ -483,7 +483,7 @@ def test_every_analog_variable_is_an_analog_item_with_its_range(servers, short_s
             return await analog_variables(connection, await connection.get_namespace_index(NAMESPACE_URI))
 
     analog = run(session())
-    assert len(analog) == 3 * 7 + 3  # seven Doubles per axis, SimTime, ControlPeriod, ReclaimRate
+    assert len(analog) == 3 * 8 + 3  # eight Doubles per axis, SimTime, ControlPeriod, ReclaimRate
     for path, found in analog.items():
         assert found["type"] == ua.NodeId(ua.ObjectIds.AnalogUnitType), path
         assert "EngineeringUnits" in found, path
@@ -499,6 +499,7 @@ def test_every_analog_variable_is_an_analog_item_with_its_range(servers, short_s
         "Reclaimer/Luff/ReferenceVelocity": (-0.002, 0.002),
         "Reclaimer/Luff/DriveSetpoint": (-5.6e5, 1.1e6),  # forcerange
         "Reclaimer/Travel/DriveApplied": (-3.2e3, 3.2e3),
+        "Reclaimer/Slew/DriveCommanded": (-3.0e4, 3.0e4),
         "Reclaimer/Luff/ReferenceAcceleration": ((-5.6e5 - gravity[2]) / mass[2, 2], (1.1e6 - gravity[2]) / mass[2, 2]),
         "Reclaimer/SimTime": (0.0, 20.0),  # the short path
         "Reclaimer/ControlPeriod": (0.0, 0.01),
@@ -688,7 +689,7 @@ def test_the_nodeset_file_loads_into_a_fresh_server_with_the_same_tree(servers, 
     assert ("Machines", "Reclaimer", "Identification", "SerialNumber") in paths
     assert ("types", "MachineryItemState_StateMachineType", "Executing", "StateNumber") in paths
     ranges = [value[2] for path, value in served.items() if path[-1] == (False, "EURange")]
-    assert len(ranges) == 2 * (3 * 7 + 3) and all(ranges)  # every analog item, under Objects and under Machines
+    assert len(ranges) == 2 * (3 * 8 + 3) and all(ranges)  # every analog item, under Objects and under Machines
 
     again = subprocess.run(serve_command(short_scene, "--nodeset", str(nodeset)), cwd=ROOT, env=environment(),
                            capture_output=True, text=True, timeout=120)

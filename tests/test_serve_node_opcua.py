@@ -98,6 +98,13 @@ def test_a_node_opcua_client_browses_steps_and_sees_its_subscription_move(short_
     # The subscription saw SimTime reach each Step's end (a publication per Step), and the reference move.
     assert seen["notified"]["SimTime"][-1] == pytest.approx(1.11)
     assert len(set(seen["notified"]["SimTime"])) >= 2 and len(set(seen["notified"]["ReferencePosition"])) >= 2
+    # The luff's commanded force comes stamped with the readings of the period it was held over
+    # (a client groups a cycle's values by source timestamp): 490.5 kN m from the first Step on.
+    commanded, stamps = seen["notified"]["DriveCommanded"], seen["stamped"]["DriveCommanded"]
+    assert commanded and commanded[-1] == pytest.approx(490500.0)
+    assert None not in stamps and set(stamps) <= set(seen["stamped"]["SimTime"])
+    times = dict(zip(seen["stamped"]["SimTime"], seen["notified"]["SimTime"], strict=True))
+    assert [times[stamp] > 0 for stamp in stamps] == [value == pytest.approx(490500.0) for value in commanded]
 
 
 def test_node_opcua_logs_in_with_an_encrypted_password_and_reads_what_each_session_may_do(short_scene, node_opcua,

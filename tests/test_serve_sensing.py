@@ -184,8 +184,8 @@ def test_the_new_doubles_are_analog_items_with_units_and_ranges(served, in_proce
         assert found["type"] == ua.NodeId(ua.ObjectIds.AnalogUnitType), path
         assert (found["EngineeringUnits"].DisplayName.Text, found["EngineeringUnits"].UnitId) == (unit, unece(code))
         assert (found["EURange"].Low, found["EURange"].High) == pytest.approx((low, high)), path
-    # The paper machine's contract and these: 7 per axis, 3 machine-level, 5 more.
-    assert len(analog) == 3 * 7 + 3 + 5
+    # The paper machine's contract and these: 8 per axis, 3 machine-level, 5 more.
+    assert len(analog) == 3 * 8 + 3 + 5
 
 
 def test_the_nodeset_holds_the_new_nodes_and_loads_into_a_fresh_server(dig_scene, tmp_path):

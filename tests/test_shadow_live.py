@@ -20,7 +20,7 @@ from test_serve import CALL_TIMEOUT, AlarmEvents, Launched, client, environment,
 
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import learn
-from bwr_twin.shadow.live import LiveShadow, Source, poll_once
+from bwr_twin.shadow.live import APART, LiveShadow, Sample, Source, read_once
 from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.publish import ShadowServer, residual_ranges
 from bwr_twin.shadow.tags import read_tags
@@ -51,7 +51,7 @@ async def session(url: str, shadow: LiveShadow, events: list, drop_at: float | N
                 if now - drop_at < STEP * 0.01 / 2:
                     await source._client.disconnect()  # the network drops the shadow's session
                 continue
-            await poll_once(source, shadow, events.append, [server] if server is not None else [])
+            await read_once(source, shadow, events.append, [server] if server is not None else [])
     await source.close()
 
 
@@ -154,21 +154,70 @@ async def watched_and_served(url: str, shadow: LiveShadow, events: list, publish
         await published.stop()
 
 
+async def subscribed_and_polled(url: str, apart) -> tuple[list[Sample], list[Sample]]:
+    """Five PLC cycles, a Read of every tag after each; the subscription's samples of the same
+    cycles, taken only after the fifth. Then a map whose force tags are the PLC's own writes,
+    which the server does not stamp with the cycle, subscribed to."""
+    subscribed = Source(url, read_tags(TAGS, "bwr_heavy"))
+    polled = Source(url, read_tags(apart, "bwr_heavy"), poll=0.01)
+    await subscribed.connect()
+    await polled.connect()
+    read, queued = [], []
+    async with client(url) as connection:
+        plc = await HeavyPlc.attach(connection, STEP, 0.01)
+        for _ in range(5):
+            await plc.cycle()
+            read += await polled.read()
+        while not queued or queued[-1].time < read[-1].time:
+            queued += await subscribed.read()
+        stamped_apart = Source(url, read_tags(apart, "bwr_heavy"))
+        await stamped_apart.connect()
+        for _ in range(APART):  # the server stamps each write as it takes it: a cycle brings two stamps
+            await plc.cycle()
+        with pytest.raises(BwrError, match=r"tags\.toml: tags travel\.force = 'Reclaimer\.Travel\.DriveSetpoint', "
+                           r"slew\.force = .*, luff\.force = .* never carry the source timestamp the others do: .* "
+                           r"read them with --poll"):
+            await stamped_apart.read()
+        await stamped_apart.close()
+    for source in (subscribed, polled):
+        await source.close()
+    return read, queued
+
+
+def test_a_subscribed_shadow_groups_each_cycle_by_its_stamp_and_a_map_stamped_apart_is_polled(tmp_path):
+    """Subscribed, the shadow gets every cycle's sample, in order, even those that came while it
+    was not reading: each the same as a Read of every tag right after that cycle (the force the
+    setpoint held over it). The PLC's own setpoint writes carry no source timestamp: a map naming
+    them is one line when subscribed, and is read with --poll."""
+    apart = tmp_path / "tags.toml"
+    apart.write_text(TAGS.read_text().replace(".DriveCommanded", ".DriveSetpoint"))
+    read, queued = served(SCENE, lambda url: subscribed_and_polled(url, apart))
+    assert [s.time for s in read] == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5])
+    by_time = {round(s.time, 6): s for s in queued}
+    assert set(by_time) >= {round(s.time, 6) for s in read}
+    assert [s.time for s in queued] == sorted(s.time for s in queued)
+    for polled in read:
+        sample = by_time[round(polled.time, 6)]
+        for field in ("position", "speed", "force"):
+            assert getattr(sample, field).tolist() == getattr(polled, field).tolist(), (polled.time, field)
+    assert np.abs(read[-1].force).max() > 0  # the PLC's forces, not a drive at rest
+
+
 WIND = "[plant]\nwind_speed = 15.0\ngust_amplitude = 4.0\nwind_direction = 90.0\n"  # m/s, m/s, deg: a windy shift
 
 
 async def windy_session(url: str, tags, shadows: list[LiveShadow]) -> None:
-    """The PLC at 10 Hz for SECONDS; after every cycle one sample, with the anemometer's wind,
-    goes to each of `shadows`."""
+    """The PLC at 10 Hz for SECONDS; after every cycle the samples since, with the anemometer's
+    wind, go to each of `shadows`."""
     source = Source(url, tags)
     await source.connect()
     async with client(url) as connection:
         plc = await HeavyPlc.attach(connection, STEP, 0.01)
         for _ in range(round(SECONDS / (STEP * 0.01))):
             await plc.cycle()
-            sample = await source.read()
-            for shadow in shadows:
-                shadow.add(sample)
+            for sample in await source.read():
+                for shadow in shadows:
+                    shadow.add(sample)
     await source.close()
 
 

@@ -3,10 +3,11 @@ arrives, against the machine's control period; and how soon the health and the a
 once the detectors have run.
 
 `python -m bwr_twin.serve` plays the heavy machine (scenes/heavy_shadow.toml, lockstep), a PLC
-client at 10 Hz drives it as examples/shadow_demo.py does, and the live shadow, a second client,
-reads it after every PLC cycle and publishes on its own OPC UA server
-(bwr_twin.shadow.publish). The latency is the wall-clock time from the shadow's Read returning
-to the residuals written into its address space (and to the health and alarms written); the
+client at 10 Hz drives it as examples/shadow_demo.py does, and the live shadow, a second client
+subscribed to the tags, takes the samples its subscription brought after every PLC cycle and
+publishes on its own OPC UA server (bwr_twin.shadow.publish). The latency is the wall-clock time
+from the samples' arrival to the residuals written into its address space (and to the health
+and alarms written); the
 thresholds are learned on the first LEARN s, so the detectors run from then on, over every
 block of the session so far.
 
@@ -27,7 +28,7 @@ import numpy as np
 from asyncua import Client
 
 from bwr_twin.shadow.detect import learn
-from bwr_twin.shadow.live import LiveShadow, Source, poll_once
+from bwr_twin.shadow.live import LiveShadow, Source, read_once
 from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.publish import ShadowServer, residual_ranges
 from bwr_twin.shadow.tags import read_tags
@@ -83,7 +84,7 @@ async def session(url: str, seconds: float) -> tuple[list[float], list[float], i
                 published.ranges = residual_ranges(twin.limits, twin.machine.rated_speed, thresholds)
                 await published.start()
             outputs = [published, stopwatch] if shadow.thresholds is not None else []
-            await poll_once(source, shadow, print, outputs)
+            await read_once(source, shadow, print, outputs)
     await source.close()
     await published.stop()
     return published.latencies, stopwatch.verdicts, len(shadow.blocks().start)

@@ -86,6 +86,8 @@ AXIS_VARIABLES = (
     Variable("ReferenceAcceleration", D, ("m/s²", "rad/s²"), "the path's acceleration at SimTime"),
     Variable("DriveSetpoint", D, ("N", "N·m"), "drive force the PLC commands, held over the periods advanced after the write",
              writable=True),
+    Variable("DriveCommanded", D, ("N", "N·m"), "drive force the PLC commanded over the last period (the setpoint "
+             "held), stamped with the period's readings"),
     Variable("DriveApplied", D, ("N", "N·m"), "drive force applied over the last period (within the rating)"),
     Variable("AtLimit", B, None, "limit switch: the joint at or beyond its operating envelope or end stop"),
 )

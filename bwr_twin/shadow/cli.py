@@ -12,9 +12,9 @@ learned from a fault-free log of the same machine (--baseline), for --false-alar
 (default 0.01), or read from a thresholds.json an earlier shadow wrote. DIR holds events.jsonl
 (the alarms: class, axis, size, onset; and the gaps), residuals.csv (per block of 1 s the force,
 position, speed and drift residuals per axis) and thresholds.json. DIR appears only when
-complete. Live (--source), the shadow reads the tags a tag map names (docs/shadow.md) every
---poll s and prints its events as JSON lines as they happen (the source lost and back, gaps,
-alarms), until Ctrl-C or --duration s. With --serve URL the shadow is an OPC UA server too
+complete. Live (--source), the shadow subscribes to the tags a tag map names (docs/shadow.md),
+or reads them every --poll s, and prints its events as JSON lines as they happen (the source
+lost and back, gaps, alarms), until Ctrl-C or --duration s. With --serve URL the shadow is an OPC UA server too
 (bwr_twin.shadow.publish, docs/shadow.md), and with --view PORT a page in the browser
 (bwr_twin.shadow.view): live, each block's residuals, the health and the alarms as they come;
 over a log, what the shadow made of it, served until Ctrl-C or --duration s. Bad input exits
@@ -43,7 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     watched.add_argument("--log", type=Path, help="run directory (or timeseries.csv) to watch")
     watched.add_argument("--source", help="the machine's OPC UA server, opc.tcp://HOST:PORT, to watch live")
     parser.add_argument("--tags", type=Path, help="live: the tag map (tags.toml)")
-    parser.add_argument("--poll", type=float, default=0.01, help="live: s between reads (default 0.01)")
+    parser.add_argument("--poll", type=float, help="live: read every tag every POLL s instead of subscribing "
+                        "(for a PLC whose server stamps one cycle's values apart)")
     parser.add_argument("--duration", type=float, help="live, or a log with --serve: stop after this many s "
                         "(default: until Ctrl-C)")
     parser.add_argument("--serve", metavar="URL", help="serve the residuals, health and alarms over OPC UA at "
@@ -169,8 +170,8 @@ def _live(args: argparse.Namespace) -> int:
         raise BwrError("--source needs --tags: the tag map naming the machine's variables (docs/shadow.md)")
     if not args.source.startswith("opc.tcp://"):
         raise BwrError(f"--source must be an opc.tcp://HOST:PORT address, got {args.source!r}")
-    if not args.poll > 0:
-        raise BwrError("--poll must be > 0 s")
+    if args.poll is not None and not args.poll > 0:
+        raise BwrError(f"--poll must be > 0 s, got {args.poll:g}")
     _check_serving(args)
     if not args.model.is_file():
         raise BwrError(f"{args.model}: MJCF file not found")
@@ -186,7 +187,7 @@ def _live(args: argparse.Namespace) -> int:
 
     async def live() -> None:
         async with _outputs(args, twin, thresholds) as outputs:
-            await run_live(Source(args.source, tags), shadow, say, poll=args.poll, duration=args.duration,
+            await run_live(Source(args.source, tags, args.poll), shadow, say, duration=args.duration,
                            outputs=outputs)
 
     asyncio.run(live())

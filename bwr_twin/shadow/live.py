@@ -1,12 +1,16 @@
 """The live shadow: an OPC UA client (asyncua) of the machine's PLC, reading the tags a tag map
 names, and the shadow over its samples as they arrive.
 
-Each poll reads every tag in one Read request, so that a sample's readings belong together; a
-poll that finds the time unchanged adds nothing. Every whole block of samples is handed to the
-twin as soon as it is complete, and the detectors run over the blocks so far (bwr_twin.shadow.
-detect, the same as over a log). When the source drops, the shadow says so, reconnects every
-RETRY s, and says when it is back: the samples it missed make a gap, which no block spans and
-which is reported as one, never as an alarm.
+By default the shadow subscribes to every tag and groups the notifications into samples by
+their source timestamp: a PLC's server stamps one cycle's values alike, so a sample is complete
+when every tag has reported that stamp (a server hands a publish's notifications over item by
+item, so their order says nothing). Polled instead (`poll`), each read takes every tag in one
+Read request, for a server that stamps its values apart; a poll that finds the time unchanged
+adds nothing. Every whole block of samples is handed to the twin as soon as it is complete, and
+the detectors run over the blocks so far (bwr_twin.shadow.detect, the same as over a log). When
+the source drops, the shadow says so, reconnects every RETRY s, and says when it is back: the
+samples it missed make a gap, which no block spans and which is reported as one, never as an
+alarm.
 """
 
 from __future__ import annotations
@@ -29,6 +33,10 @@ from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
 RETRY = 1.0  # s between attempts to reach a lost source
 REQUEST_TIMEOUT = 60.0  # s an OPC UA request may take on a busy machine
+PUBLISHING_INTERVAL = 10.0  # ms: how often the subscription's notifications are sent, a control period
+QUEUED = 1000  # notifications a tag's monitored item keeps between two publishes (10 s at a 10 ms cycle)
+QUIET = 2.0  # s without a notification after which the subscribed source is asked whether it is still there
+APART = 100  # stamps waiting on a tag: more, and the server stamps the tags apart (a subscription cannot group them)
 
 
 @dataclass(frozen=True)
@@ -51,12 +59,14 @@ class Sample:
 
 
 class Source:
-    """The machine's PLC over OPC UA: its tags, checked once connected, read a sample at a time."""
+    """The machine's PLC over OPC UA: its tags, checked once connected, then subscribed to; or
+    with `poll` (s), read a sample every `poll` s."""
 
-    def __init__(self, url: str, tags: Tags):
-        self.url, self.tags = url, tags
+    def __init__(self, url: str, tags: Tags, poll: float | None = None):
+        self.url, self.tags, self.poll = url, tags, poll
         self._client: Client | None = None
         self._nodes: list = []
+        self._arrivals: Arrivals | None = None
 
     async def connect(self) -> None:
         """Connect and find every tag; BwrError naming a tag that is missing, not a Double, or in
@@ -73,19 +83,100 @@ class Source:
                 node = client.get_node(ua.NodeId(node_id, ns))
                 await _check_tag(node, node_id, what, unit, self.tags)
                 nodes.append(node)
+            arrivals = None if self.poll is not None else await _subscribe(client, nodes, self.tags)
         except BaseException:
             await _close(client)
             raise
-        self._client, self._nodes = client, nodes
+        self._client, self._nodes, self._arrivals = client, nodes, arrivals
 
-    async def read(self) -> Sample:
-        """Every tag, in one Read request."""
-        return Sample.of(await self._client.read_values(self._nodes))
+    async def read(self) -> list[Sample]:
+        """The samples since the last call, oldest first. Polled: every tag in one Read request.
+        Subscribed: every sample complete by now, waiting up to QUIET s for the first; none if
+        none came and the source still answers (asyncua's errors if it does not)."""
+        if self._arrivals is None:
+            return [Sample.of(await self._client.read_values(self._nodes))]
+        samples = await self._arrivals.take(QUIET)
+        if not samples:
+            await self._client.read_values(self._nodes[:1])  # still there? raises if not
+        return samples
 
     async def close(self) -> None:
         if self._client is not None:
             await _close(self._client)
-            self._client = None
+            self._client, self._arrivals = None, None
+
+
+class Arrivals:
+    """A subscription's notifications grouped into samples, by source timestamp: asyncua's
+    handler of data changes. A sample is complete when every tag has reported its stamp; a stamp
+    that a newer complete one overtakes is dropped (a tag's queue overflowed); `next()` hands the
+    complete samples over in order."""
+
+    def __init__(self, tags: Tags):
+        self._path, self._tags = tags.path, tags.nodes()
+        self._pending: dict[object, dict[int, float]] = {}  # source timestamp -> {tag index: value}
+        self._complete: asyncio.Queue[Sample | None] = asyncio.Queue()  # None: wakes `take` to raise `error`
+        self.error: BwrError | None = None
+
+    def datachange_notification(self, node, value, data) -> None:
+        item = data.monitored_item
+        stamp, index = item.Value.SourceTimestamp, item.ClientHandle - FIRST_HANDLE
+        if stamp is None:
+            self._fail(f"tag {self._tags[index][1]} = {self._tags[index][0]!r} comes without a source timestamp")
+            return
+        group = self._pending.setdefault(stamp, {})
+        group[index] = value
+        if len(group) == len(self._tags):
+            for older in [s for s in self._pending if s <= stamp]:
+                del self._pending[older]
+            self._complete.put_nowait(Sample.of([group[i] for i in range(len(self._tags))]))
+        elif len(self._pending) > APART:
+            # The tags missing where the time has reported: those the server stamps apart from the cycle.
+            timed = [group for group in self._pending.values() if 0 in group] or list(self._pending.values())
+            behind = {i for group in timed for i in range(len(self._tags)) if i not in group}
+            self._fail("tags " + ", ".join(f"{self._tags[i][1]} = {self._tags[i][0]!r}" for i in sorted(behind))
+                       + " never carry the source timestamp the others do")
+
+    def _fail(self, why: str) -> None:
+        if self.error is None:
+            self.error = BwrError(f"{self._path}: {why}: the server stamps a cycle's values apart, and a "
+                                  "subscription cannot group them into samples; read them with --poll")
+        self._complete.put_nowait(None)
+
+    async def take(self, timeout: float) -> list[Sample]:
+        """Every complete sample not yet taken, oldest first, waiting up to `timeout` s for the
+        first; BwrError if the tags cannot be grouped."""
+        found = []
+        with contextlib.suppress(asyncio.TimeoutError):
+            found.append(await asyncio.wait_for(self._complete.get(), timeout))
+        while not self._complete.empty():
+            found.append(self._complete.get_nowait())
+        if self.error is not None:
+            raise self.error
+        return found
+
+
+FIRST_HANDLE = 1  # the client handle of the first tag's monitored item; the others follow in Tags.nodes()'s order
+
+
+async def _subscribe(client: Client, nodes: list, tags: Tags) -> Arrivals:
+    """A subscription to every tag's value, notified on each new source timestamp even where the
+    value repeats (an axis at rest), with a queue for the cycles between two publishes."""
+    arrivals = Arrivals(tags)
+    subscription = await client.create_subscription(PUBLISHING_INTERVAL, arrivals)
+    trigger = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+    requests = []
+    for handle, node in enumerate(nodes, start=FIRST_HANDLE):
+        request = ua.MonitoredItemCreateRequest()
+        request.ItemToMonitor = ua.ReadValueId(NodeId=node.nodeid, AttributeId=ua.AttributeIds.Value)
+        request.MonitoringMode = ua.MonitoringMode.Reporting
+        request.RequestedParameters = ua.MonitoringParameters(ClientHandle=handle, SamplingInterval=0.0,
+                                                              Filter=trigger, QueueSize=QUEUED, DiscardOldest=True)
+        requests.append(request)
+    for node, result in zip(nodes, await subscription.create_monitored_items(requests), strict=True):
+        if isinstance(result, ua.StatusCode):
+            raise BwrError(f"{tags.path}: tag {node.nodeid.Identifier!r} cannot be subscribed to: {result.name}")
+    return arrivals
 
 
 async def _close(client: Client) -> None:
@@ -228,28 +319,29 @@ class LiveShadow:
         return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
 
 
-async def poll_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None],
+async def read_once(source: Source, shadow: LiveShadow, say: Callable[[dict], None],
                     outputs: Sequence[Output] = ()) -> bool:
-    """Read one sample into the shadow; on a dropped source say so, reconnect (every RETRY s until
-    it answers) and say when it is back. True if a sample was read. A block's residuals go to
-    the `outputs` as soon as the twin has them, then its detectors run, then the health and the
-    alarms go to them."""
+    """Read the samples since the last call into the shadow; on a dropped source say so,
+    reconnect (every RETRY s until it answers) and say when it is back. True if a sample was
+    read. A block's residuals go to the `outputs` as soon as the twin has them, then its
+    detectors run, then the health and the alarms go to them."""
     try:
-        sample = await source.read()
+        samples = await source.read()
     except (ConnectionError, OSError, asyncio.TimeoutError, ua.UaError, AttributeError):
         say({"event": "source_lost", "time_s": shadow.time, "source": source.url})
         await source.close()
         await _reconnect(source, shadow, say)
         return False
     arrived = time.perf_counter()
-    if shadow.add(sample, detect=not outputs) and outputs:
-        newest = shadow.newest()
-        for output in outputs:
-            await output.residuals(newest, shadow.position(float(newest.end[-1])), arrived)
-        shadow.detect()
-        for output in outputs:
-            await output.verdict(shadow.health, shadow.alarms)
-    return True
+    for sample in samples:
+        if shadow.add(sample, detect=not outputs) and outputs:
+            newest = shadow.newest()
+            for output in outputs:
+                await output.residuals(newest, shadow.position(float(newest.end[-1])), arrived)
+            shadow.detect()
+            for output in outputs:
+                await output.verdict(shadow.health, shadow.alarms)
+    return bool(samples)
 
 
 async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], None]) -> None:
@@ -263,11 +355,11 @@ async def _reconnect(source: Source, shadow: LiveShadow, say: Callable[[dict], N
     say({"event": "source_back", "time_s": shadow.time, "source": source.url})
 
 
-async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, poll: float,
-                   duration: float | None, outputs: Sequence[Output] = ()) -> None:
-    """Watch `source` every `poll` s for `duration` s (None: until cancelled), publishing to
-    `outputs`; a source that cannot be reached at the start is said so and tried again
-    every RETRY s, as one that drops later."""
+async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], None], *, duration: float | None,
+                   outputs: Sequence[Output] = ()) -> None:
+    """Watch `source` for `duration` s (None: until cancelled), as its samples come or as it is
+    polled, publishing to `outputs`; a source that cannot be reached at the start is said so
+    and tried again every RETRY s, as one that drops later."""
     async def watch() -> None:
         try:
             await source.connect()
@@ -275,8 +367,9 @@ async def run_live(source: Source, shadow: LiveShadow, say: Callable[[dict], Non
             say({"event": "source_lost", "time_s": 0.0, "source": source.url})
             await _reconnect(source, shadow, say)
         while True:
-            await poll_once(source, shadow, say, outputs)
-            await asyncio.sleep(poll)
+            await read_once(source, shadow, say, outputs)
+            if source.poll is not None:
+                await asyncio.sleep(source.poll)
 
     try:
         await asyncio.wait_for(watch(), duration)

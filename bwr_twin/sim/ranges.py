@@ -59,7 +59,7 @@ def eu_ranges(loop: Lockstep) -> dict[tuple[str, str | None], Range]:
     acceleration = (force - bias[:, None]) / inertia
     per_axis = {"EncoderPosition": position, "ReferencePosition": position, "EncoderVelocity": velocity,
                 "ReferenceVelocity": velocity, "ReferenceAcceleration": acceleration, "DriveSetpoint": force,
-                "DriveApplied": force}
+                "DriveCommanded": force, "DriveApplied": force}
     ranges: dict[tuple[str, str | None], Range] = {
         (name, axis): (float(values[j, 0]), float(values[j, 1]))
         for name, values in per_axis.items() for j, axis in enumerate(AXES)}

@@ -35,7 +35,8 @@ class Twin:
             it ends); `loop.k` the next one to be advanced.
         reading: the latest values of the published variables (see `bwr_twin.serve.address_space`),
             SI units: encoder positions (m, rad) and velocities (m/s, rad/s) at the start of period
-            k, the reference at k, the forces the drives applied over period k - 1 (N, N m).
+            k, the reference at k, the forces the drives were commanded and applied over period
+            k - 1 (N, N m).
         measured, at_limit, sim_time: the same as Python values, without building `reading`:
             MEASURED's (3,) lists in its order, the three limit switches, SimTime (s);
             `drive_applied()` and `reclaim_rate()` give the rest.
@@ -98,6 +99,7 @@ class Twin:
         """The published values by name, per axis as (3,) arrays: built when first asked for in a period."""
         if self._reading is None:
             self._reading = {
+                "DriveCommanded": self._command[0].copy(),
                 "DriveApplied": np.array(self.drive_applied()),
                 "ReclaimRate": self.reclaim_rate(),
                 "SimTime": self.sim_time,

@@ -48,11 +48,16 @@ async function main() {
             requestedPublishingInterval: 20, requestedMaxKeepAliveCount: 20, requestedLifetimeCount: 600,
             publishingEnabled: true, priority: 1,
         });
-        const notified = { SimTime: [], ReferencePosition: [] };
-        for (const [name, path] of [["SimTime", "Reclaimer.SimTime"], ["ReferencePosition", "Reclaimer.Travel.ReferencePosition"]]) {
+        const notified = { SimTime: [], ReferencePosition: [], DriveCommanded: [] };
+        const stamped = { SimTime: [], DriveCommanded: [] };  // each notification's source timestamp, ms since 1970
+        for (const [name, path] of [["SimTime", "Reclaimer.SimTime"], ["ReferencePosition", "Reclaimer.Travel.ReferencePosition"],
+                                    ["DriveCommanded", "Reclaimer.Luff.DriveCommanded"]]) {
             const item = ClientMonitoredItem.create(subscription, { nodeId: id(path), attributeId: AttributeIds.Value },
                 { samplingInterval: 0, discardOldest: true, queueSize: 100 }, TimestampsToReturn.Both);
-            item.on("changed", (value) => notified[name].push(value.value.value));
+            item.on("changed", (value) => {
+                notified[name].push(value.value.value);
+                if (name in stamped) stamped[name].push(value.sourceTimestamp ? value.sourceTimestamp.getTime() : null);
+            });
         }
         const writes = await session.write([0, 1, 2].map((axis) => ({
             nodeId: id(`Reclaimer.${["Travel", "Slew", "Luff"][axis]}.DriveSetpoint`), attributeId: AttributeIds.Value,
@@ -77,7 +82,7 @@ async function main() {
             namespaceIndex: ns, reclaimerChildren: children, travelChildren: travel,
             units: units.value.value, unitsStatus: units.statusCode.name, range: range.value.value,
             reset: reset.statusCode.name, writes: writes.map((s) => s.name), steps,
-            stepWithoutArgument: bare.statusCode.name, notified,
+            stepWithoutArgument: bare.statusCode.name, notified, stamped,
         }));
     } finally {
         await session.close();
