@@ -34,6 +34,8 @@ from bwr_twin.shadow.twin import Blocks, ShadowTwin
 RETRY = 1.0  # s between attempts to reach a lost source
 REQUEST_TIMEOUT = 60.0  # s an OPC UA request may take on a busy machine
 PUBLISHING_INTERVAL = 10.0  # ms: how often the subscription's notifications are sent, a control period
+KEEP_ALIVE = 500  # publishing intervals without a notification before the server says it is there (5 s)
+LIFETIME = 3000  # publishing intervals without the client before the server ends the subscription (30 s)
 QUEUED = 1000  # notifications a tag's monitored item keeps between two publishes (10 s at a 10 ms cycle)
 QUIET = 2.0  # s without a notification after which the subscribed source is asked whether it is still there
 APART = 100  # stamps waiting on a tag: more, and the server stamps the tags apart (a subscription cannot group them)
@@ -163,7 +165,9 @@ async def _subscribe(client: Client, nodes: list, tags: Tags) -> Arrivals:
     """A subscription to every tag's value, notified on each new source timestamp even where the
     value repeats (an axis at rest), with a queue for the cycles between two publishes."""
     arrivals = Arrivals(tags)
-    subscription = await client.create_subscription(PUBLISHING_INTERVAL, arrivals)
+    subscription = await client.create_subscription(ua.CreateSubscriptionParameters(
+        RequestedPublishingInterval=PUBLISHING_INTERVAL, RequestedLifetimeCount=LIFETIME,
+        RequestedMaxKeepAliveCount=KEEP_ALIVE, PublishingEnabled=True), arrivals)
     trigger = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
     requests = []
     for handle, node in enumerate(nodes, start=FIRST_HANDLE):
