@@ -94,6 +94,10 @@ def test_each_fault_is_named_after_its_onset_with_its_size(name, twin, logs, thr
         assert first.size == pytest.approx(size, rel=share), first.describe()
     if kind == "stuck_encoder":
         assert first.time_s <= onset + 2.0  # within the 2 s target
+        assert first.onset_range_s is None  # seen, not estimated
+    else:  # the onsets the residuals leave possible hold the true one, within a block
+        earliest, latest = first.onset_range_s
+        assert earliest <= first.onset_s <= latest and earliest - 1.0 <= onset <= latest + 1.0, first.describe()
     print(name, first.describe(), f"delay {first.time_s - onset:.0f} s")
 
 
@@ -226,6 +230,7 @@ def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp
         "friction_rise", "slew", "%", "Slew")
     (logged,) = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
     assert (alarm["Size"], alarm["OnsetTime"]) == (logged["size"], logged["onset_s"])
+    assert [alarm["OnsetEarliest"], alarm["OnsetLatest"]] == list(logged["onset_range_s"])
     assert alarm["Retain"] is True and alarm["ConditionClassName"].Text == "Maintenance"
     assert alarm["Message"].Text.startswith("slew friction_rise +")
 

@@ -44,6 +44,9 @@ AXES = ("travel", "slew", "luff")
 SOURCES = (*AXES, "wheel end")  # what an alarm names: an axis, or the wheel end (a mass change)
 UNITS = ("m", "rad", "rad")
 WINDOW = 120  # blocks: the longest a fault's onset is looked back for
+# The GLR's drop from its best onset that still leaves an onset possible: chi-squared with one
+# degree of freedom at 95 %, the likelihood set of the change time with the size at its best.
+ONSET_DROP = float(chi2.ppf(0.95, 1))
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
 ISOLATE = 5  # blocks between a fault's detection and its isolation
 STUCK_COUNTS = 3  # encoder counts an axis must move in a block for an unmoving reading to be stuck
@@ -96,7 +99,12 @@ class Alarm:
     """A fault found: its class and axis ("wheel end" for a mass change), the time it was raised,
     its estimated onset and size (`size` in `unit`; a stuck encoder's, how far the axis moved
     unseen when it was raised), and the statistic against its threshold (a stuck encoder's: that
-    distance against STUCK_COUNTS counts)."""
+    distance against STUCK_COUNTS counts).
+
+    Of a fault found by its GLR test, `onset_range_s`: the earliest and the latest onset (s) the
+    residuals leave possible at 95 % (ONSET_DROP). While the fault's axis does nothing that shows
+    it (a derate while its drive barely pushes), the range spans that time. None for a stuck
+    encoder, which is seen, not estimated."""
 
     kind: str
     axis: str
@@ -106,12 +114,19 @@ class Alarm:
     unit: str
     statistic: float
     threshold: float
+    onset_range_s: tuple[float, float] | None = None
+
+    def estimate(self) -> str:
+        """'+35 % since 102.0 s (possibly 98.0 to 104.0 s)': the size and the onset, with the
+        onsets possible where there is more than one."""
+        since = f"since {self.onset_s:.1f} s"
+        if self.onset_range_s is not None and self.onset_range_s[0] < self.onset_range_s[1]:
+            since += f" (possibly {self.onset_range_s[0]:.1f} to {self.onset_range_s[1]:.1f} s)"
+        return f"{self.size:+.3g} {self.unit} {since}"
 
     def describe(self) -> str:
-        """'slew friction_rise +35 % since 102.0 s (raised at 140.0 s)'."""
-        size = f"{self.size:+.3g} {self.unit}"
-        return (f"{self.axis} {self.kind} {size} since {self.onset_s:.1f} s (raised at {self.time_s:.1f} s): "
-                f"{CLASSES[self.kind]}")
+        """'slew friction_rise +35 % since 102.0 s (possibly 98.0 to 104.0 s) (raised at 140.0 s): ...'."""
+        return f"{self.axis} {self.kind} {self.estimate()} (raised at {self.time_s:.1f} s): {CLASSES[self.kind]}"
 
     def event(self) -> dict:
         return {"event": "alarm", **asdict(self), "meaning": CLASSES[self.kind]}
@@ -168,22 +183,34 @@ def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool, start: int = 0) -> 
 
     r, s: (blocks x per,) whitened residuals and signatures, `per` entries a block. For block n,
     onsets m = n - WINDOW + 1 .. n: g = max (sum_{m..n} r s)^2 / sum s^2, over sizes > 0 if `sided`."""
-    rs = (r * s).reshape(-1, per).sum(axis=1)
-    ss = (s * s).reshape(-1, per).sum(axis=1)
-    n = len(rs)
-    crs, css = np.concatenate([[0.0], np.cumsum(rs)]), np.concatenate([[0.0], np.cumsum(ss)])
+    crs, css = _sums(r, s, per)
+    n = len(crs) - 1
     g, onset, size = np.zeros(n - start), np.zeros(n - start, dtype=np.int64), np.zeros(n - start)
     for k in range(start, n):
-        m = np.arange(max(0, k - WINDOW + 1), k + 1)
-        num, den = crs[k + 1] - crs[m], css[k + 1] - css[m]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            theta = np.where(den > 0, num / den, 0.0)
-            stat = np.where(den > 0, num * theta, 0.0)
-        if sided:
-            stat = np.where(theta > 0, stat, 0.0)
+        m, stat, theta, _ = _profile(crs, css, k, sided)
         best = int(np.argmax(stat))
         g[k - start], onset[k - start], size[k - start] = stat[best], m[best], theta[best]
     return g, onset, size
+
+
+def _sums(r: np.ndarray, s: np.ndarray, per: int) -> tuple[np.ndarray, np.ndarray]:
+    """The running sums of r s and of s^2 by block, from 0."""
+    rs = (r * s).reshape(-1, per).sum(axis=1)
+    ss = (s * s).reshape(-1, per).sum(axis=1)
+    return np.concatenate([[0.0], np.cumsum(rs)]), np.concatenate([[0.0], np.cumsum(ss)])
+
+
+def _profile(crs: np.ndarray, css: np.ndarray, k: int, sided: bool
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """At block k, per onset m within WINDOW: (m, the statistic, the size, sum s^2 since m)."""
+    m = np.arange(max(0, k - WINDOW + 1), k + 1)
+    num, den = crs[k + 1] - crs[m], css[k + 1] - css[m]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        theta = np.where(den > 0, num / den, 0.0)
+        stat = np.where(den > 0, num * theta, 0.0)
+    if sided:
+        stat = np.where(theta > 0, stat, 0.0)
+    return m, stat, theta, den
 
 
 def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresholds:
@@ -300,15 +327,19 @@ def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
 
 
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:
+    """The alarm of hypothesis h raised at block k: its size and onset, and the onsets whose
+    statistic at block k is within ONSET_DROP of the best."""
+    crs, css = _sums(*_whitened(blocks, t, h), 3 if h.axis < 0 else 1)
+    m, stat, _, _ = _profile(crs, css, k, h.sided)
+    possible = m[stat >= g - ONSET_DROP]
     if h.kind == "mass_change":
-        value, unit, axis = size * UNIT_MASS, "kg", "wheel end"
+        scale, unit, axis = UNIT_MASS, "kg", "wheel end"
     elif h.kind == "encoder_drift":
-        value = size * (1.0 if h.axis == 0 else math.degrees(1.0))
-        unit, axis = ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
+        scale, unit, axis = (1.0 if h.axis == 0 else math.degrees(1.0)), ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
     else:
-        value, unit, axis = 100.0 * size, "%", AXES[h.axis]
-    return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), value, unit, g,
-                 t.thresholds[_name(h)])
+        scale, unit, axis = 100.0, "%", AXES[h.axis]
+    return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), size * scale, unit, g,
+                 t.thresholds[_name(h)], (float(blocks.start[possible.min()]), float(blocks.start[possible.max()])))
 
 
 def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -111,13 +112,16 @@ class Source:
 class Arrivals:
     """A subscription's notifications grouped into samples, by source timestamp: asyncua's
     handler of data changes. A sample is complete when every tag has reported its stamp; a stamp
-    that a newer complete one overtakes is dropped (a tag's queue overflowed); `next()` hands the
+    that a newer complete one overtakes is dropped (a tag's queue overflowed); `take()` hands the
     complete samples over in order."""
 
     def __init__(self, tags: Tags):
         self._path, self._tags = tags.path, tags.nodes()
         self._pending: dict[object, dict[int, float]] = {}  # source timestamp -> {tag index: value}
-        self._complete: asyncio.Queue[Sample | None] = asyncio.Queue()  # None: wakes `take` to raise `error`
+        self._complete: deque[Sample] = deque()
+        # Set when a sample completes or the grouping fails. A sample is never handed over through
+        # the wait itself: asyncio.wait_for may drop what its awaitable returned as it times out.
+        self._arrived = asyncio.Event()
         self.error: BwrError | None = None
 
     def datachange_notification(self, node, value, data) -> None:
@@ -131,30 +135,36 @@ class Arrivals:
         if len(group) == len(self._tags):
             for older in [s for s in self._pending if s <= stamp]:
                 del self._pending[older]
-            self._complete.put_nowait(Sample.of([group[i] for i in range(len(self._tags))]))
+            self._complete.append(Sample.of([group[i] for i in range(len(self._tags))]))
+            self._arrived.set()
         elif len(self._pending) > APART:
-            # The tags missing where the time has reported: those the server stamps apart from the cycle.
-            timed = [group for group in self._pending.values() if 0 in group] or list(self._pending.values())
-            behind = {i for group in timed for i in range(len(self._tags)) if i not in group}
-            self._fail("tags " + ", ".join(f"{self._tags[i][1]} = {self._tags[i][0]!r}" for i in sorted(behind))
-                       + " never carry the source timestamp the others do")
+            # The tags apart: those missing from most of the stamps the time carries (a few are
+            # missing from the newest only because their notifications are still on the way).
+            timed = [group for group in self._pending.values() if 0 in group]
+            apart = [i for i in range(1, len(self._tags)) if sum(i in group for group in timed) < len(timed) / 2]
+            if not timed or len(apart) == len(self._tags) - 1:
+                apart = [0]  # the time itself
+            named = ", ".join(f"{self._tags[i][1]} = {self._tags[i][0]!r}" for i in apart)
+            self._fail(f"tag {named} never carries the source timestamp the others do" if len(apart) == 1 else
+                       f"tags {named} never carry the source timestamp the others do")
 
     def _fail(self, why: str) -> None:
         if self.error is None:
             self.error = BwrError(f"{self._path}: {why}: the server stamps a cycle's values apart, and a "
                                   "subscription cannot group them into samples; read them with --poll")
-        self._complete.put_nowait(None)
+        self._arrived.set()
 
     async def take(self, timeout: float) -> list[Sample]:
         """Every complete sample not yet taken, oldest first, waiting up to `timeout` s for the
         first; BwrError if the tags cannot be grouped."""
-        found = []
-        with contextlib.suppress(asyncio.TimeoutError):
-            found.append(await asyncio.wait_for(self._complete.get(), timeout))
-        while not self._complete.empty():
-            found.append(self._complete.get_nowait())
+        if not self._complete and self.error is None:
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(self._arrived.wait(), timeout)
+        self._arrived.clear()
         if self.error is not None:
             raise self.error
+        found = list(self._complete)
+        self._complete.clear()
         return found
 
 
