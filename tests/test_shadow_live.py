@@ -273,6 +273,9 @@ def test_the_command_line_says_an_unreachable_source_is_lost_and_keeps_trying(tm
     other = subprocess.run(paper, check=False, capture_output=True, text=True, cwd=ROOT, env=environment(), timeout=600)
     assert other.returncode == 2 and len(other.stderr.strip().splitlines()) == 1
     assert "a map for another machine is refused" in other.stderr
+    never = subprocess.run([*command, "--poll", "0"], check=False, capture_output=True, text=True, cwd=ROOT,
+                           env=environment(), timeout=600)
+    assert never.returncode == 2 and never.stderr.strip() == "error: --poll must be > 0 s, got 0", never.stderr
 
 
 def _still_blocks():
