@@ -183,11 +183,15 @@ def glr(r: np.ndarray, s: np.ndarray, per: int, sided: bool, start: int = 0) -> 
 
     r, s: (blocks x per,) whitened residuals and signatures, `per` entries a block. For block n,
     onsets m = n - WINDOW + 1 .. n: g = max (sum_{m..n} r s)^2 / sum s^2, over sizes > 0 if `sided`."""
-    crs, css = _sums(r, s, per)
+    return _glr(*_sums(r, s, per), sided, start)
+
+
+def _glr(crs: np.ndarray, css: np.ndarray, sided: bool, start: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`glr` from the running sums of r s and s^2 (`_sums`)."""
     n = len(crs) - 1
     g, onset, size = np.zeros(n - start), np.zeros(n - start, dtype=np.int64), np.zeros(n - start)
     for k in range(start, n):
-        m, stat, theta, _ = _profile(crs, css, k, sided)
+        m, stat, theta = _profile(crs, css, k, sided)
         best = int(np.argmax(stat))
         g[k - start], onset[k - start], size[k - start] = stat[best], m[best], theta[best]
     return g, onset, size
@@ -200,9 +204,8 @@ def _sums(r: np.ndarray, s: np.ndarray, per: int) -> tuple[np.ndarray, np.ndarra
     return np.concatenate([[0.0], np.cumsum(rs)]), np.concatenate([[0.0], np.cumsum(ss)])
 
 
-def _profile(crs: np.ndarray, css: np.ndarray, k: int, sided: bool
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """At block k, per onset m within WINDOW: (m, the statistic, the size, sum s^2 since m)."""
+def _profile(crs: np.ndarray, css: np.ndarray, k: int, sided: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At block k, per onset m within WINDOW: (m, the statistic, the size)."""
     m = np.arange(max(0, k - WINDOW + 1), k + 1)
     num, den = crs[k + 1] - crs[m], css[k + 1] - css[m]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -210,7 +213,7 @@ def _profile(crs: np.ndarray, css: np.ndarray, k: int, sided: bool
         stat = np.where(den > 0, num * theta, 0.0)
     if sided:
         stat = np.where(theta > 0, stat, 0.0)
-    return m, stat, theta, den
+    return m, stat, theta
 
 
 def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresholds:
@@ -284,11 +287,11 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
     alarms = _stuck(blocks, t)
     # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
     blind = {AXES.index(a.axis): a.time_s for a in alarms}
-    ratios, found = [], []
+    ratios, found, sums = [], [], []
     for i, h in enumerate(HYPOTHESES):
-        r, s = _whitened(blocks, t, h)
+        sums.append(_sums(*_whitened(blocks, t, h), 3 if h.axis < 0 else 1))
         before = known[i] if known else (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0))
-        new = glr(r, s, 3 if h.axis < 0 else 1, h.sided, start=len(before[0]))
+        new = _glr(*sums[-1], h.sided, start=len(before[0]))
         g, onset, size = (np.concatenate([a, b]) for a, b in zip(before, new))
         ratios.append(g / t.thresholds[_name(h)])
         found.append((g, onset, size))
@@ -310,7 +313,7 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
         if blocks.start[onset] > raised_at and _name(h) not in raised and blocks.end[k] < after_stuck:
             raised_at = float(blocks.end[k])
             raised.add(_name(h))
-            alarms.append(_alarm(blocks, t, h, k, int(onset), float(size), float(g)))
+            alarms.append(_alarm(blocks, t, h, sums[best], k, int(onset), float(size), float(g)))
     health = {}
     for j, source in enumerate(SOURCES):
         worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
@@ -326,11 +329,11 @@ def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
     return last if complete else None
 
 
-def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, k: int, onset: int, size: float, g: float) -> Alarm:
-    """The alarm of hypothesis h raised at block k: its size and onset, and the onsets whose
-    statistic at block k is within ONSET_DROP of the best."""
-    crs, css = _sums(*_whitened(blocks, t, h), 3 if h.axis < 0 else 1)
-    m, stat, _, _ = _profile(crs, css, k, h.sided)
+def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray, np.ndarray], k: int, onset: int,
+           size: float, g: float) -> Alarm:
+    """The alarm of hypothesis h (its `_sums`) raised at block k: its size and onset, and the
+    onsets whose statistic at block k is within ONSET_DROP of the best."""
+    m, stat, _ = _profile(*sums, k, h.sided)
     possible = m[stat >= g - ONSET_DROP]
     if h.kind == "mass_change":
         scale, unit, axis = UNIT_MASS, "kg", "wheel end"

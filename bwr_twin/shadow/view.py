@@ -19,7 +19,7 @@ import viser
 
 from bwr_twin.drawing.meshes import Meshes
 from bwr_twin.model.machine import Machine
-from bwr_twin.shadow.detect import AXES, SOURCES, Alarm
+from bwr_twin.shadow.detect import AXES, CLASSES, SOURCES, Alarm
 from bwr_twin.shadow.twin import Blocks
 
 CHART_BLOCKS = 300  # blocks (s) of residuals the charts show
@@ -105,7 +105,7 @@ class ShadowView:
         self.health.content = _health_table(health)
         if alarms:
             self.alarms.content = "\n".join(f"- **{a.axis} {a.kind}** {a.estimate()} (raised at {a.time_s:.1f} s): "
-                                            f"{a.describe().split(': ', 1)[1]}" for a in alarms)
+                                            f"{CLASSES[a.kind]}" for a in alarms)
 
     async def stop(self) -> None:
         with contextlib.redirect_stdout(io.StringIO()):
