@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bwr_twin.calibrate.balance import Balance
 from bwr_twin.calibrate.cli import main as calibrate
 from bwr_twin.calibrate.fit import Problem, fit
 from bwr_twin.calibrate.mjcf_edit import edit
@@ -299,6 +300,41 @@ def test_a_drive_lag_and_an_encoder_offset_are_recovered(plain_log):
     assert estimate(result, "travel_lag").fitted == pytest.approx(lag, abs=0.1)
     assert estimate(result, "slew_lag").fitted == pytest.approx(lag, abs=0.1)
     assert estimate(result, "luff_offset").fitted == pytest.approx(offset, rel=0.3), estimate(result, "luff_offset")
+
+
+def test_the_floor_is_the_scatter_the_force_noise_leaves_and_no_interval_is_narrower(plain_log):
+    """The balance's floor is the standard error of its least squares under noise of that spread
+    in the force: over draws of noise on the same motion, the estimates scatter by the floor. The
+    fit's standard errors are never below it."""
+    machine = Machine(HEAVY)
+    log = read_log(plain_log, machine)
+    names = ["travel_armature", "slew_armature", "luff_damping", "luff_armature"]
+    problem = Problem(machine, catalogue(machine, names), [log])
+    balance = Balance(problem)
+    params = problem.params.copy()
+    for p in params.values():
+        p.move_off_bound(fraction=0.05)
+    noise = 0.01 * np.abs(machine.drive_limits).max(axis=1)  # N, N m
+    floor = balance.floor(params, problem.knobs, noise=noise)
+    needed = balance.needed(params)
+    columns = balance.columns(params, problem.knobs, needed)
+    rows = balance.moving.astype(float) / noise  # each axis's moving rows, weighted
+    a = (columns * rows[..., None]).reshape(-1, len(names))
+    draws = np.random.default_rng(7).normal(size=(400, *needed.shape)) * noise
+    estimates = np.linalg.lstsq(a, (draws * rows).reshape(400, -1).T, rcond=None)[0]
+    for i, name in enumerate(names):
+        assert np.std(estimates[i]) == pytest.approx(floor[name], rel=0.15), name
+    # The fit's standard errors are never below the floor of the force residual it leaves. (The
+    # drive inertias, none in this machine, come out undetermined and go back to nominal.)
+    result = fit(problem)
+    at_fit = problem.params.copy()
+    for e in result.estimates:
+        at_fit[e.knob.name].value[:] = e.fitted
+    solved = [k for k in problem.knobs if k.name in result.solved]
+    floor = Balance(problem).floor(at_fit, solved)
+    assert solved and floor
+    for knob in solved:
+        assert estimate(result, knob.name).standard_error >= floor[knob.name] * (1 - 1e-9), knob.name
 
 
 def test_a_mass_position_along_the_boom_is_recovered(tmp_path):

@@ -7,9 +7,10 @@ Gauss-Newton least squares (`optimize`) and gives the confidence intervals from 
 by its own residual RMS, so that the intervals come from the noise actually left), a drive's lag
 an encoder's offset (signals, not model fields), the logged wind's force applied in each window
 (`bwr_twin.calibrate.wind`: sysid's rollout takes controls only, so the fit's own rolls out with
-`qfrc_applied` too), and the identifiability rule: a parameter
-whose 95 % interval is not finite or wider than its value is named, put back to its nominal
-value, and the rest fitted again without it.
+`qfrc_applied` too), the floor the logged force's noise puts under each interval
+(`bwr_twin.calibrate.balance`), and the identifiability rule: a parameter whose 95 % interval is
+not finite or wider than its value is named, put back to its nominal value, and the rest fitted
+again without it.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import scipy.special
 from mujoco import sysid
 from mujoco.minimize import jacobian_fd
 
+from bwr_twin.calibrate.balance import Balance
 from bwr_twin.calibrate.log import MachineLog
 from bwr_twin.calibrate.parameters import Knob
 from bwr_twin.calibrate.start import equation_error_start, masses_first
@@ -46,6 +48,7 @@ MAX_ITERATIONS = 30
 FD_STEP = 1e-2
 THREADS = 2
 PASSES = 3  # fits: the first with every parameter, the next without those it could not determine
+NORMAL_95 = 1.959964  # the normal's 97.5 % point: the floor's rows are thousands
 TIMESTEP = 0.01  # s: the fit's physics step; the heavy machine's motion differs from 0.002 s's by < 0.1 %
 
 
@@ -380,8 +383,9 @@ def window_intervals(r: np.ndarray, jac: np.ndarray, windows: int, alpha: float 
 
 def _intervals(problem: Problem, residual_fn: Callable, params: sysid.ParameterDict, dropped: set[str]
                ) -> list[Estimate]:
-    """Each parameter's standard error and 95 % interval from the Jacobian at `params` (sysid's
-    calculate_intervals), and whether the log determines it."""
+    """Each parameter's standard error and 95 % interval from the Jacobian at `params`
+    (`window_intervals`), never narrower than the logged force's noise allows (the balance's
+    floor), and whether the log determines it."""
     free = [k for k in problem.knobs if k.name not in dropped]
     trial = params.copy()
     for name in dropped:
@@ -396,6 +400,7 @@ def _intervals(problem: Problem, residual_fn: Callable, params: sysid.ParameterD
     jac = np.asarray(jacobian_fd(residual=f, x=x.reshape(-1, 1), r=r.reshape(-1, 1), eps=FD_STEP, n_res=0,
                                  bounds=[bounds[0].reshape(-1, 1), bounds[1].reshape(-1, 1)])[0])
     covariance, half = window_intervals(r, jac, len(problem.windows))
+    floor = Balance(problem).floor(trial, free)  # what the logged force's noise leaves unknown
     estimates = []
     index = {k.name: i for i, k in enumerate(free)}
     for knob in problem.knobs:
@@ -404,8 +409,9 @@ def _intervals(problem: Problem, residual_fn: Callable, params: sysid.ParameterD
             continue
         i = index[knob.name]
         value = float(x[i])
-        width = float(half[i])
-        stderr = float(np.sqrt(covariance[i, i])) if np.isfinite(width) else float("inf")
+        least = floor.get(knob.name, 0.0)
+        width = max(float(half[i]), NORMAL_95 * least)
+        stderr = max(float(np.sqrt(covariance[i, i])), least) if np.isfinite(width) else float("inf")
         identifiable = bool(np.isfinite(width) and width <= abs(value))
         estimates.append(Estimate(knob, value, stderr, (value - width, value + width), identifiable))
     return estimates

@@ -12,7 +12,9 @@ has no disturbance but what its [disturbance] section, absent, leaves (none).
 
 The expected standard errors are the sensitivity at the nominal model with the log's noise: the
 twin runs the test on the nominal machine with its encoders' quantisation, the log is sampled at
-SAMPLE_RATE with TORQUE_NOISE, and sysid's intervals come from the Jacobian there.
+SAMPLE_RATE with TORQUE_NOISE, and sysid's intervals come from the Jacobian there, never below
+the floor the force's noise puts under them (bwr_twin.calibrate.balance): on the heavy machine the
+luff's drive inertia, its accelerations small beside that noise, is the one it raises.
 """
 
 from __future__ import annotations
@@ -174,11 +176,12 @@ def _inertia_and_gravity(machine, q: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def expected_errors(scene_path: Path, seed: int = 1) -> list[tuple[object, float, bool]]:
     """(knob, expected standard error, determined) of each default parameter: the twin runs the
     test on the nominal machine, the log is sampled at SAMPLE_RATE with TORQUE_NOISE, and sysid's
-    intervals come from the Jacobian at the nominal values."""
+    intervals come from the Jacobian at the nominal values, the balance's floor under them."""
     from mujoco import sysid
     from mujoco.minimize import jacobian_fd
 
-    from bwr_twin.calibrate.fit import FD_STEP, Problem
+    from bwr_twin.calibrate.balance import Balance
+    from bwr_twin.calibrate.fit import FD_STEP, NORMAL_95, Problem
     from bwr_twin.calibrate.log import MachineLog
     from bwr_twin.calibrate.parameters import catalogue
     from bwr_twin.config.scene import load_scene
@@ -207,10 +210,14 @@ def expected_errors(scene_path: Path, seed: int = 1) -> list[tuple[object, float
     jac = np.asarray(jacobian_fd(residual=f, x=probe.reshape(-1, 1), r=f(probe).reshape(-1, 1), eps=FD_STEP,
                                  n_res=0, bounds=[bounds[0].reshape(-1, 1), bounds[1].reshape(-1, 1)])[0])
     covariance, half = sysid.calculate_intervals([r], jac)
+    # The Jacobian takes the logged force as exact; its noise leaves more unknown (the balance's floor).
+    floor = Balance(problem).floor(params, knobs, noise=TORQUE_NOISE * rating)
     out = []
     for i, knob in enumerate(knobs):
-        error = float(np.sqrt(covariance[i, i])) if np.isfinite(half[i]) else float("inf")
-        out.append((knob, error, bool(np.isfinite(half[i]) and half[i] <= max(abs(knob.nominal), probe[i]))))
+        least = floor.get(knob.name, 0.0)
+        error = max(float(np.sqrt(covariance[i, i])), least) if np.isfinite(half[i]) else float("inf")
+        width = max(float(half[i]), NORMAL_95 * least)
+        out.append((knob, error, bool(np.isfinite(width) and width <= max(abs(knob.nominal), probe[i]))))
     return out
 
 

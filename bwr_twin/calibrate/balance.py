@@ -1,0 +1,118 @@
+"""The balance of forces over a log's intervals, from MuJoCo's inverse dynamics, and the floor the
+logged force's noise puts under each parameter's standard error.
+
+Over each log interval the drive's force (with the wind's) equals what `mj_inverse` needs to make
+the measured change of speed, plus the Coulomb friction against the motion. This balance is
+linear in the damping, the friction, a drive's inertia and a mass, each parameter's column the
+change of the needed force with it (the model compiled with the parameter changed).
+
+The floor. An output-error fit replays the logged force as if it were exact, and the Jacobian's
+intervals take it so. It is not: a drive's force or current is read to some percent, while the
+encoders and the speed feedback read the motion to a count. Replayed, the force's noise drives
+the model where the machine did not go, and a heavier, stiffer axis, which filters it, fits
+better than the true one: the fit is biased and its intervals narrow. With the motion taken as
+exact, the balance's least squares has the covariance (Phi' W Phi)^-1, each axis's rows weighted
+by the inverse variance of its force residual: the Cramer-Rao bound for noise of that spread in
+the force. No estimator does better, so no parameter's standard error is less than its square root.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+from mujoco import sysid
+
+from bwr_twin.calibrate.parameters import BODY_KINDS, JOINT_KINDS
+from bwr_twin.calibrate.windows import GAP_FACTOR
+
+STICK = 0.05  # of the rated speed: slower, the Coulomb friction is anywhere within its band
+PROBE = 0.1  # of a parameter's range: the change its column is taken over (the balance is linear in most)
+MODEL_KINDS = JOINT_KINDS + BODY_KINDS  # what the balance holds: a lag or an offset is a signal's
+
+
+class Balance:
+    """The balance of forces over every interval of a fit problem's logs (within a stretch
+    without a gap): the mid-point joint values and speeds, the mean acceleration, and the mean
+    force on the axes, the drive's and the wind's."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        dofs = [int(problem.model.jnt_dofadr[j]) for j in problem.machine.joint_ids]
+        rows = [_intervals(log, None if wind is None else wind[:, dofs])
+                for log, wind in zip(problem.logs, problem.wind, strict=True)]
+        self.q, self.qd, self.qdd, self.force = (np.vstack([r[i] for r in rows]) for i in range(4))
+        envelope = problem.machine.envelope
+        self.rated = np.where(np.isfinite(problem.machine.rated_speed), problem.machine.rated_speed,
+                              0.1 * (envelope[:, 1] - envelope[:, 0]))
+        self.moving = np.abs(self.qd) > STICK * self.rated  # (n, 3): friction's sign is known
+
+    def needed(self, params: sysid.ParameterDict) -> np.ndarray:
+        """(n, 3) the axes' forces the model compiled with `params` needs at each row: MuJoCo's
+        inverse dynamics (its passive damping included) and the Coulomb friction against the
+        motion (a constraint in MuJoCo: by hand)."""
+        problem = self.problem
+        model = sysid.apply_param_modifiers(params, problem.spec)
+        data = mujoco.MjData(model)
+        qpos = np.array([int(model.jnt_qposadr[j]) for j in problem.machine.joint_ids])
+        dofs = np.array([int(model.jnt_dofadr[j]) for j in problem.machine.joint_ids])
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT  # no friction loss, no limits
+        out = np.empty_like(self.q)
+        for i in range(len(self.q)):
+            data.qpos[:] = model.qpos0
+            data.qvel[:] = 0.0
+            data.qacc[:] = 0.0
+            data.qpos[qpos], data.qvel[dofs], data.qacc[dofs] = self.q[i], self.qd[i], self.qdd[i]
+            mujoco.mj_inverse(model, data)
+            out[i] = data.qfrc_inverse[dofs]
+        return out + model.dof_frictionloss[dofs] * np.sign(self.qd)
+
+    def columns(self, params: sysid.ParameterDict, knobs, needed: np.ndarray) -> np.ndarray:
+        """(n, 3, len(knobs)) each knob's column: the change of the needed force per unit of it."""
+        out = []
+        for knob in knobs:
+            trial = params.copy()
+            step = PROBE * (knob.high - knob.low)
+            value = trial[knob.name].value[0]
+            step = step if value + step <= knob.high else -step  # stay within the bounds
+            trial[knob.name].value[:] = value + step
+            out.append((self.needed(trial) - needed) / step)
+        return np.stack(out, axis=-1)
+
+    def floor(self, params: sysid.ParameterDict, knobs, noise: np.ndarray | None = None) -> dict[str, float]:
+        """Each model knob's least standard error (by name) at `params`: the Cramer-Rao bound of
+        the balance, its axes' force noise `noise` (3,) in N and N m, or the spread of the force
+        residual at `params` where not given (the noise, the disturbances and the misfit)."""
+        knobs = [k for k in knobs if k.kind in MODEL_KINDS]
+        if not knobs:
+            return {}
+        needed = self.needed(params)
+        if noise is None:
+            residual = self.force - needed
+            noise = np.array([np.std(residual[self.moving[:, j], j]) if self.moving[:, j].sum() > 1
+                              else np.inf for j in range(3)])
+        weight = np.where(np.isfinite(noise) & (noise > 0), 1.0 / np.maximum(noise, 1e-300), 0.0)
+        regressor = self.columns(params, knobs, needed) * (self.moving * weight)[..., None]
+        regressor = regressor.reshape(-1, len(knobs))
+        information = regressor.T @ regressor
+        scale = np.sqrt(np.maximum(np.diag(information), 1e-300))  # the columns of one size before inverting
+        covariance = np.linalg.pinv(information / np.outer(scale, scale)) / np.outer(scale, scale)
+        error = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        unseen = np.diag(information) <= 0  # an axis that never moved, or a knob that changes nothing
+        return {k.name: float("inf") if u else float(e) for k, e, u in zip(knobs, error, unseen, strict=True)}
+
+
+def _intervals(log, wind) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per log interval (within a stretch without a gap): the mid-point joint values and speeds,
+    the mean acceleration, and the mean force on the axes: the drive's (the logged forces are
+    each sample's mean, so the interval's is the two ends' mean) and the wind's (`wind`, (n, 3)
+    per row, or None)."""
+    dt = np.diff(log.time)
+    keep = dt <= GAP_FACTOR * np.median(dt)
+    speed = log.qd if log.qd is not None else np.array([log.velocity_at(i) for i in range(len(log.time))])
+    q = 0.5 * (log.q[1:] + log.q[:-1])
+    qd = 0.5 * (speed[1:] + speed[:-1])
+    qdd = np.diff(speed, axis=0) / dt[:, None]
+    force = 0.5 * (log.force[1:] + log.force[:-1])
+    if wind is not None:
+        force = force + 0.5 * (wind[1:] + wind[:-1])
+    return q[keep], qd[keep], qdd[keep], force[keep]
