@@ -41,6 +41,13 @@ class Balance:
         rows = [_intervals(log, None if wind is None else wind[:, dofs])
                 for log, wind in zip(problem.logs, problem.wind, strict=True)]
         self.q, self.qd, self.qdd, self.force = (np.vstack([r[i] for r in rows]) for i in range(4))
+        # Each row's span of the fit's window length, numbered across the logs.
+        spans, first = [], 0
+        for r in rows:
+            number = np.floor((r[4] - r[4][0]) / problem.window).astype(np.int64) if len(r[4]) else r[4]
+            spans.append(first + number)
+            first += int(number.max()) + 1 if len(number) else 0
+        self.spans = np.concatenate(spans).astype(np.int64)
         envelope = problem.machine.envelope
         self.rated = np.where(np.isfinite(problem.machine.rated_speed), problem.machine.rated_speed,
                               0.1 * (envelope[:, 1] - envelope[:, 0]))
@@ -80,32 +87,45 @@ class Balance:
 
     def floor(self, params: sysid.ParameterDict, knobs, noise: np.ndarray | None = None) -> dict[str, float]:
         """Each model knob's least standard error (by name) at `params`: the Cramer-Rao bound of
-        the balance, its axes' force noise `noise` (3,) in N and N m, or the spread of the force
-        residual at `params` where not given (the noise, the disturbances and the misfit)."""
+        the balance for its axes' force noise `noise` (3,) in N and N m. Where `noise` is not
+        given, the force residual at `params` is the noise (the drives' noise, the disturbances
+        and the misfit): its spread gives the bound, and as it is correlated in time (a
+        disturbance holds for a while, the misfit for longer), the clustered sandwich over spans
+        of the fit's window gives the least's own scatter; the larger of the two."""
         knobs = [k for k in knobs if k.kind in MODEL_KINDS]
         if not knobs:
             return {}
         needed = self.needed(params)
-        if noise is None:
-            residual = self.force - needed
+        residual = self.force - needed
+        measured = noise is None
+        if measured:
             noise = np.array([np.std(residual[self.moving[:, j], j]) if self.moving[:, j].sum() > 1
                               else np.inf for j in range(3)])
         weight = np.where(np.isfinite(noise) & (noise > 0), 1.0 / np.maximum(noise, 1e-300), 0.0)
-        regressor = self.columns(params, knobs, needed) * (self.moving * weight)[..., None]
-        regressor = regressor.reshape(-1, len(knobs))
-        information = regressor.T @ regressor
-        scale = np.sqrt(np.maximum(np.diag(information), 1e-300))  # the columns of one size before inverting
-        covariance = np.linalg.pinv(information / np.outer(scale, scale)) / np.outer(scale, scale)
-        error = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        rows = self.moving * weight  # (n, 3): each axis's moving rows, in units of its noise
+        regressor = self.columns(params, knobs, needed) * rows[..., None]  # (n, 3, p)
+        flat = regressor.reshape(-1, len(knobs))
+        information = flat.T @ flat
         unseen = np.diag(information) <= 0  # an axis that never moved, or a knob that changes nothing
+        scale = np.sqrt(np.maximum(np.diag(information), 1e-300))  # the columns of one size before inverting
+        bread = np.linalg.pinv(information / np.outer(scale, scale)) / np.outer(scale, scale)
+        variance = np.diag(bread)
+        if measured:
+            scores = np.einsum("nap,na->np", regressor, residual * rows)  # (n, p)
+            spans = np.zeros((self.spans.max() + 1, len(knobs)))
+            np.add.at(spans, self.spans, scores)
+            clusters = len(spans)
+            sandwich = bread @ (spans.T @ spans) @ bread * clusters / max(clusters - 1, 1)
+            variance = np.maximum(variance, np.diag(sandwich))
+        error = np.sqrt(np.maximum(variance, 0.0))
         return {k.name: float("inf") if u else float(e) for k, e, u in zip(knobs, error, unseen, strict=True)}
 
 
-def _intervals(log, wind) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _intervals(log, wind) -> tuple[np.ndarray, ...]:
     """Per log interval (within a stretch without a gap): the mid-point joint values and speeds,
-    the mean acceleration, and the mean force on the axes: the drive's (the logged forces are
-    each sample's mean, so the interval's is the two ends' mean) and the wind's (`wind`, (n, 3)
-    per row, or None)."""
+    the mean acceleration, the mean force on the axes (the drive's: the logged forces are each
+    sample's mean, so the interval's is the two ends' mean; and the wind's, `wind` (n, 3) per
+    row, or None), and the mid-point time."""
     dt = np.diff(log.time)
     keep = dt <= GAP_FACTOR * np.median(dt)
     speed = log.qd if log.qd is not None else np.array([log.velocity_at(i) for i in range(len(log.time))])
@@ -115,4 +135,5 @@ def _intervals(log, wind) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
     force = 0.5 * (log.force[1:] + log.force[:-1])
     if wind is not None:
         force = force + 0.5 * (wind[1:] + wind[:-1])
-    return q[keep], qd[keep], qdd[keep], force[keep]
+    middle = 0.5 * (log.time[1:] + log.time[:-1])
+    return q[keep], qd[keep], qdd[keep], force[keep], middle[keep]
