@@ -220,8 +220,8 @@ def report(study: dict) -> None:
         within = [r for r in mine if r["identifiable"] and abs(r["error"]) <= tolerance]
         named = sum(r["identifiable"] for r in mine)
         share = len(within) / named if named else 0.0  # the target is on what the fit could identify
-        print(f"{kind + ' within ' + format(tolerance, '.0%') + ' (of ' + str(named) + ' identified, ' + str(len(mine)) + ' fitted)':58s} "
-              f"{'all':14s} {f'{len(within)} ({share:.0%})':22s} {'yes' if share == 1 else 'no'}")
+        figure = f"{kind} within {tolerance:.0%} (of {named} identified, {len(mine)} fitted)"
+        print(f"{figure:58s} {'all':14s} {f'{len(within)} ({share:.0%})':22s} {'yes' if share == 1 else 'no'}")
     covered = [r["covered"] for r in rows if r["identifiable"]]
     share = float(np.mean(covered)) if covered else 0.0
     print(f"{'95 % interval covers the truth':58s} {'>= 90 %':14s} {share:.0%} {'':17s} {'yes' if share >= 0.9 else 'no'}")

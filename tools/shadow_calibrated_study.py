@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import statistics
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -50,14 +51,15 @@ def calibrate(folder: Path, rng: np.random.Generator) -> tuple[Path, Path]:
 
 
 def study(folder: Path, scene: Path, twins: dict[str, ShadowTwin], seeds: int, hours: float) -> dict[str, dict]:
-    """Per twin: per class (median delay s, missed, isolated share), and the false alarms over
-    the fault-free hours."""
+    """Per twin: per class (median delay s, missed, isolated share, what the others were named),
+    and the false alarms over the fault-free hours."""
     learned_on = [run(folder, f"baseline-{seed}", seed, scene=scene) for seed in range(1000, 1000 + round(3600 / LOG_S))]
     thresholds = {name: learn_from(twin, learned_on, 0.01) for name, twin in twins.items()}
     found: dict[str, dict] = {name: {} for name in twins}
     for label, (table, kind, axis, _) in classes().items():
         delays: dict[str, list[float]] = {name: [] for name in twins}
         right = dict.fromkeys(twins, 0)
+        named_else: dict[str, Counter] = {name: Counter() for name in twins}
         for seed in range(1, seeds + 1):
             onset = float(round(np.random.default_rng(seed).uniform(60.0, 240.0)))
             log = run(folder, f"{kind}-{seed}", seed, f"[[faults]]\n{table}\nstart = {onset}", scene=scene)
@@ -65,10 +67,13 @@ def study(folder: Path, scene: Path, twins: dict[str, ShadowTwin], seeds: int, h
                 alarms = [a for a in watch(twin, log, thresholds[name]).alarms if a.time_s >= onset]
                 if alarms:
                     delays[name].append(alarms[0].time_s - onset)
-                    right[name] += (alarms[0].kind, alarms[0].axis) == (kind, axis)
+                    if (alarms[0].kind, alarms[0].axis) == (kind, axis):
+                        right[name] += 1
+                    else:
+                        named_else[name][f"{alarms[0].axis} {alarms[0].kind}"] += 1
         for name in twins:
             median = statistics.median(delays[name]) if delays[name] else float("nan")
-            found[name][label] = (median, seeds - len(delays[name]), right[name] / seeds)
+            found[name][label] = (median, seeds - len(delays[name]), right[name] / seeds, named_else[name])
     false = dict.fromkeys(twins, 0)
     runs = max(1, round(hours * 3600 / LOG_S))
     for seed in range(2000, 2000 + runs):
@@ -90,8 +95,8 @@ def main() -> None:
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
     nominal = ShadowTwin(HEAVY)
-    print("| variant | class | nominal: median delay (s), missed, isolated | calibrated: median delay (s), missed, "
-          "isolated |")
+    cell = "median delay (s), missed, isolated (else named)"
+    print(f"| variant | class | nominal: {cell} | calibrated: {cell} |")
     print("| --- | --- | --- | --- |")
     for v in range(1, args.variants + 1):
         folder = args.out / f"variant_{v:02d}"
@@ -106,8 +111,10 @@ def main() -> None:
                     count, hours = found[name][label]
                     cells.append(f"{count} over {hours:.1f} h")
                 else:
-                    median, missed, isolated = found[name][label]
-                    cells.append(f"{median:.0f}, {missed}, {100 * isolated:.0f} %")
+                    median, missed, isolated, named_else = found[name][label]
+                    otherwise = "; ".join(f"{n} {what}" for what, n in named_else.most_common())
+                    cells.append(f"{median:.0f}, {missed}, {100 * isolated:.0f} %"
+                                 + (f" (else {otherwise})" if otherwise else ""))
             print(f"| {v} | {label} | {cells[0]} | {cells[1]} |", flush=True)
 
 
