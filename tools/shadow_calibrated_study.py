@@ -58,8 +58,7 @@ def study(folder: Path, scene: Path, twins: dict[str, ShadowTwin], seeds: int, h
     found: dict[str, dict] = {name: {} for name in twins}
     for label, (table, kind, axis, _) in classes().items():
         delays: dict[str, list[float]] = {name: [] for name in twins}
-        right = dict.fromkeys(twins, 0)
-        named_else: dict[str, Counter] = {name: Counter() for name in twins}
+        named: dict[str, Counter] = {name: Counter() for name in twins}  # what each first alarm said
         for seed in range(1, seeds + 1):
             onset = float(round(np.random.default_rng(seed).uniform(60.0, 240.0)))
             log = run(folder, f"{kind}-{seed}", seed, f"[[faults]]\n{table}\nstart = {onset}", scene=scene)
@@ -67,13 +66,12 @@ def study(folder: Path, scene: Path, twins: dict[str, ShadowTwin], seeds: int, h
                 alarms = [a for a in watch(twin, log, thresholds[name]).alarms if a.time_s >= onset]
                 if alarms:
                     delays[name].append(alarms[0].time_s - onset)
-                    if (alarms[0].kind, alarms[0].axis) == (kind, axis):
-                        right[name] += 1
-                    else:
-                        named_else[name][f"{alarms[0].axis} {alarms[0].kind}"] += 1
+                    named[name][f"{alarms[0].axis} {alarms[0].kind}"] += 1
         for name in twins:
             median = statistics.median(delays[name]) if delays[name] else float("nan")
-            found[name][label] = (median, seeds - len(delays[name]), right[name] / seeds, named_else[name])
+            named_else = named[name].copy()
+            right = named_else.pop(f"{axis} {kind}", 0)
+            found[name][label] = (median, seeds - len(delays[name]), right / seeds, named_else)
     false = dict.fromkeys(twins, 0)
     runs = max(1, round(hours * 3600 / LOG_S))
     for seed in range(2000, 2000 + runs):

@@ -41,13 +41,10 @@ class Balance:
         rows = [_intervals(log, None if wind is None else wind[:, dofs])
                 for log, wind in zip(problem.logs, problem.wind, strict=True)]
         self.q, self.qd, self.qdd, self.force = (np.vstack([r[i] for r in rows]) for i in range(4))
-        # Each row's span of the fit's window length, numbered across the logs.
-        spans, first = [], 0
-        for r in rows:
-            number = np.floor((r[4] - r[4][0]) / problem.window).astype(np.int64) if len(r[4]) else r[4]
-            spans.append(first + number)
-            first += int(number.max()) + 1 if len(number) else 0
-        self.spans = np.concatenate(spans).astype(np.int64)
+        # Each row's span (its log, and which of the fit's windows of time within it), numbered 0 on.
+        spans = np.vstack([np.column_stack([np.full(len(r[4]), i), (r[4] - r[4][:1]) // problem.window])
+                           for i, r in enumerate(rows)])
+        self.spans = np.unique(spans, axis=0, return_inverse=True)[1].ravel()
         envelope = problem.machine.envelope
         self.rated = np.where(np.isfinite(problem.machine.rated_speed), problem.machine.rated_speed,
                               0.1 * (envelope[:, 1] - envelope[:, 0]))
@@ -96,9 +93,9 @@ class Balance:
         if not knobs:
             return {}
         needed = self.needed(params)
-        residual = self.force - needed
         measured = noise is None
         if measured:
+            residual = self.force - needed
             noise = np.array([np.std(residual[self.moving[:, j], j]) if self.moving[:, j].sum() > 1
                               else np.inf for j in range(3)])
         weight = np.where(np.isfinite(noise) & (noise > 0), 1.0 / np.maximum(noise, 1e-300), 0.0)
