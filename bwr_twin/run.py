@@ -14,12 +14,11 @@ exits with status 2 and a one-line message; nothing is written.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import SceneError, exit_status
+from bwr_twin.errors import SceneError, exit_status, leave
 from bwr_twin.sim.budget import FORCE_HELP, check_estimate, estimate
 
 
@@ -92,4 +91,4 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

@@ -1,7 +1,7 @@
 """`python -m bwr_twin.batch`: see bwr_twin.batch.cli."""
 
-import sys
 
 from bwr_twin.batch.cli import main
+from bwr_twin.errors import leave
 
-sys.exit(main())
+leave(main())

@@ -15,9 +15,8 @@ written.
 
 from __future__ import annotations
 
-import sys
-
 from bwr_twin.calibrate.cli import main
+from bwr_twin.errors import leave
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

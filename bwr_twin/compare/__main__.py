@@ -20,12 +20,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
 from bwr_twin.config.sweep import MAX_RUNS, PLANNABLE_RUNS
-from bwr_twin.errors import BwrError, exit_status
+from bwr_twin.errors import BwrError, exit_status, leave
 from bwr_twin.sim.budget import FORCE_HELP, Estimate, check_estimate, estimate
 
 
@@ -107,4 +106,4 @@ def _first_twice(labels: list[str]) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import exit_status
+from bwr_twin.errors import exit_status, leave
 from bwr_twin.sim.budget import FORCE_HELP
 
 
@@ -116,4 +116,4 @@ def _aas(args) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

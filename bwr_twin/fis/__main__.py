@@ -28,7 +28,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import SceneError, exit_status
+from bwr_twin.errors import SceneError, exit_status, leave
 from bwr_twin.ownership import check_recorded, picture_metadata, text_mark, written_by
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
@@ -393,4 +393,4 @@ def _warnings_as_lines() -> Iterator[None]:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import BwrError
+from bwr_twin.errors import BwrError, leave
 from bwr_twin.exposure import exposure_warning
 from bwr_twin.ownership import check_output
 from bwr_twin.replay.recording import Plan, Recording
@@ -247,4 +247,4 @@ def _open(sources: list[Path], patterns: tuple[str, ...], *, use_cache: bool) ->
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

@@ -1,5 +1,4 @@
-import sys
-
+from bwr_twin.errors import leave
 from bwr_twin.serve.cli import main
 
-sys.exit(main())
+leave(main())

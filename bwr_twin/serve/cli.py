@@ -19,11 +19,10 @@ import errno
 import ipaddress
 import re
 import socket
-import sys
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import exit_status
+from bwr_twin.errors import exit_status, leave
 from bwr_twin.serve import DEFAULT_WATCHDOG_PERIODS, LOCKSTEP, REALTIME, ServeError
 from bwr_twin.sim.budget import FORCE_HELP
 
@@ -162,4 +161,4 @@ _ADDRESS = re.compile(r"(?:\[(?P<ipv6>[^\[\]/]*)\]|(?P<host>[^\[\]:/@?#\s]+))(?:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

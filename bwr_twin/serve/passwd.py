@@ -12,7 +12,7 @@ import getpass
 import sys
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import BwrError, exit_status
+from bwr_twin.errors import BwrError, exit_status, leave
 from bwr_twin.serve.security import hash_password
 
 
@@ -39,4 +39,4 @@ def _line(name: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

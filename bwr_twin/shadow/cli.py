@@ -27,12 +27,11 @@ import argparse
 import asyncio
 import contextlib
 import math
-import sys
 import time
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import BwrError, exit_status
+from bwr_twin.errors import BwrError, exit_status, leave
 
 DEFAULT_PER_HOUR = 0.01  # false alarms an hour the thresholds are set for: one in 100 h of watching
 
@@ -195,4 +194,4 @@ def _live(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())

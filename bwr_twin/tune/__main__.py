@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from bwr_twin.arguments import CommandParser
-from bwr_twin.errors import BwrError
+from bwr_twin.errors import BwrError, leave
 from bwr_twin.model.machine import AXES
 from bwr_twin.sim.budget import FORCE_HELP
 
@@ -218,4 +218,4 @@ def _finish(engine, tuning, state, out: Path) -> str:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    leave(main())
