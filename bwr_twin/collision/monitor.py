@@ -63,21 +63,16 @@ class PileClearance:
             self.periods += 1
         else:
             self.periods[runs] += 1
-        m = self._mounted
+        m, contacts, time = self._mounted, self._contacts, round(k * self.period, 9)
         if not _clearances(heights, *self._grid, order, q, qd, self.period, self.levers,
                            m.kinds, m.halves, m.positions, m.rotations, m.joints, m.anchor,
-                           m.axis, WATCH, RECHECK, NEAR, self._moved, self._measured, self.now, self.checks):
-            return  # nothing measured: nothing nearer than before
-        time = round(k * self.period, 9)
-        closer = self._measured < self.least
-        self.least[closer] = self._measured[closer]
-        self.least_time[closer] = time
+                           m.axis, WATCH, RECHECK, NEAR, time, self._moved, self._measured, self.now, self.checks,
+                           self.least, self.least_time, contacts.open):
+            return  # no shape measured touches the pile, and no contact is under way
         touching = self._measured <= 0.0
-        contacts = self._contacts
-        if touching.any() or (contacts.open >= 0).any():
-            for run, shape in zip(*np.nonzero(touching | (contacts.open >= 0))):
-                contacts.record(run, shape, touching[run, shape], float(-self._measured[run, shape]), time,
-                                [self.parts[shape], "pile"])
+        for run, shape in zip(*np.nonzero(touching | (contacts.open >= 0))):
+            contacts.record(run, shape, touching[run, shape], float(-self._measured[run, shape]), time,
+                            [self.parts[shape], "pile"])
 
     def metrics(self, run: int) -> dict:
         """metrics.json's `collision` object of `run` (docs/contracts.md)."""
@@ -129,11 +124,14 @@ def levers_of(shapes: Sequence[CollisionShape]) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _clearances(heights, x0, y0, spacing, runs, q, qd, period, levers, kinds, halves, positions0, rotations0, joints,
-                anchor, axis, watch, recheck, near, moved, measured, now, checks):  # pragma: no cover - compiled
+                anchor, axis, watch, recheck, near, time, moved, measured, now, checks, least_measured,
+                least_time, open_contacts):  # pragma: no cover - compiled
     """Each run's shapes measured if it may have moved far enough (its module's docstring), else
-    their lower bounds; whether any was measured."""
+    their lower bounds; the least measures so far and their `time` (s). Whether a shape measured
+    touches the pile or has a contact open (only a measured run can: one that is not lies
+    farther than `near`)."""
     position, rotation = np.empty(3), np.empty((3, 3))
-    any_measured = False
+    contact = False
     for run in runs:
         moved[run] += (abs(qd[run, 0]) * levers[0] + abs(qd[run, 1]) * levers[1] + abs(qd[run, 2]) * levers[2]) * period
         least = watch
@@ -148,7 +146,9 @@ def _clearances(heights, x0, y0, spacing, runs, q, qd, period, levers, kinds, ha
             measured[run, i] = shape_clearance(heights[run], x0, y0, spacing, kinds[i], halves[i], position, rotation,
                                                watch)
             now[run, i] = measured[run, i]
+            if measured[run, i] < least_measured[run, i]:
+                least_measured[run, i], least_time[run, i] = measured[run, i], time
+            contact = contact or measured[run, i] <= 0.0 or open_contacts[run, i] >= 0
         moved[run] = 0.0
         checks[run] += 1
-        any_measured = True
-    return any_measured
+    return contact
