@@ -36,6 +36,9 @@ from bwr_twin.sim.lockstep import Lockstep
 AXES = ("travel", "slew", "luff")
 STARTUP_TIMEOUT = 40.0  # s: imports, the scene, asyncua's standard address space, on a busy machine
 REQUEST_TIMEOUT = 60.0  # s a request may take: a Step of thousands of periods on a busy machine
+# asyncua (2.x) reads the server's state every watchdog interval and drops the connection when
+# that read takes longer than the interval (1 s by default): as patient as any other request
+WATCHDOG = REQUEST_TIMEOUT
 CALL_TIMEOUT = 120.0  # s: any one client session below, a bound on a hang (a busy machine steps slowly)
 PID_PERIODS = 300  # the first 3 s of the short path: travel and slew accelerate, their largest errors
 USER, PASSWORD = "plc", "s3cret"
@@ -118,7 +121,7 @@ def run_served(scene, session, *options: str):
 
 def client(url: str, password: str | None = None) -> Client:
     """An asyncua client of the server at url: anonymous, or the users file's PLC with `password`."""
-    connection = Client(url, timeout=REQUEST_TIMEOUT)
+    connection = Client(url, timeout=REQUEST_TIMEOUT, watchdog_intervall=WATCHDOG)
     if password is not None:
         connection.set_user(USER)
         connection.set_password(password)
@@ -1089,7 +1092,7 @@ def test_a_user_certificate_logs_in_and_one_not_trusted_is_refused(short_scene, 
     url = server.ready()
 
     async def secure_client(user: str | None) -> Client:
-        connection = Client(url)
+        connection = Client(url, timeout=REQUEST_TIMEOUT, watchdog_intervall=WATCHDOG)
         await connection.set_security_string(f"Basic256Sha256,SignAndEncrypt,{client_cert},{client_key}")
         if user is not None:
             await connection.load_client_certificate(str(credentials[f"{user} cert"]))

@@ -75,7 +75,7 @@ async def session(url: str, seconds: float) -> tuple[list[float], list[float], i
     await source.connect()
     published = ShadowServer(f"opc.tcp://127.0.0.1:{free_port()}", {})
     stopwatch = Stopwatch()
-    async with Client(url, timeout=60) as connection:
+    async with Client(url, timeout=60, watchdog_intervall=60) as connection:
         plc = await HeavyPlc.attach(connection, STEP, PERIOD)
         for _ in range(round(seconds / (STEP * PERIOD))):
             await plc.cycle()

@@ -74,7 +74,9 @@ class Source:
     async def connect(self) -> None:
         """Connect and find every tag; BwrError naming a tag that is missing, not a Double, or in
         another unit than the map needs."""
-        client = Client(self.url, timeout=REQUEST_TIMEOUT)
+        # asyncua's own liveness probe as patient as a request: a source that stops answering is
+        # found by `read()`, and a busy source is not dropped after a second's silence
+        client = Client(self.url, timeout=REQUEST_TIMEOUT, watchdog_intervall=REQUEST_TIMEOUT)
         await client.connect()
         try:
             namespaces = await client.get_namespace_array()
