@@ -20,7 +20,7 @@ HOLD = (0.0, 0.0, 490500.0)  # N, N m, N m: the luff's static gravity torque
 
 
 async def run(url: str, periods: int) -> list[float]:
-    client = Client(url)
+    client = Client(url, timeout=60, watchdog_intervall=60)  # s: patient on a busy machine (docs/opcua.md)
     client.session_timeout = 600_000  # ms: what the server grants; asking for more only draws a warning
     async with client:
         ns = await client.get_namespace_index(NAMESPACE)

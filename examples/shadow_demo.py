@@ -45,7 +45,7 @@ async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
     shadow = LiveShadow(twin, None, lambda event: print(json.dumps(event), flush=True))
     source = Source(url, read_tags(TAGS, twin.model_name))
     await source.connect()
-    async with Client(url, timeout=60) as connection:
+    async with Client(url, timeout=60, watchdog_intervall=60) as connection:
         plc = await HeavyPlc.attach(connection, STEP, PERIOD)
         for cycle in range(round(SECONDS / (STEP * PERIOD))):
             await plc.cycle()
