@@ -41,6 +41,9 @@ FAULTS = {
                       "travel", 100.0, 0.0016667, 0.2),  # 0.1 m over a minute
     "encoder_stuck": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 120.4', "stuck_encoder", "slew", 120.4,
                       None, None),  # mid-block, while the slew moves
+    # While the slew holds its angle (40 to 110 s), only the disturbances move it, within a count
+    "encoder_stuck_holding": ('kind = "encoder_stuck"\naxis = "slew"\nstart = 75.0', "stuck_encoder", "slew", 75.0,
+                              None, None),
 }
 
 
@@ -249,8 +252,8 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
         if fault_from is not None:
             force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
-                      rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, friction,
-                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, zeros)
+                      rng.normal(0.0, 1e-4, (n, 3)), zeros, zeros, friction,
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)), zeros)
 
     thresholds = learn([blocks(200)], np.array([1e-3, 1e-3, 1e-3]), 0.01)
     series = blocks(400, fault_from=250)
@@ -260,6 +263,48 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
     alarms, health = assess(series, thresholds, known)
     assert (alarms, health) == assess(series, thresholds)
     assert [(a.kind, a.axis) for a in alarms] == [("friction_rise", "slew")]
+
+
+def test_a_stuck_encoder_is_where_its_reading_no_longer_allows_the_axis_to_be():
+    """From its reading's last change the axis stands within one count past the boundary it
+    crossed: moved by its speed feedback back across it (on the way, or by a block's end), or on
+    past the next, its encoder is stuck; within, not. With no change seen, a count either way.
+    The margin beyond that is learned: a tenth of a count at least."""
+    from bwr_twin.shadow.detect import assess, learn
+    from bwr_twin.shadow.twin import Blocks
+
+    count = 1e-3  # rad
+
+    def blocks(way: int, moves: list[tuple[float, float, float]]) -> Blocks:
+        """The slew's reading changes `way` in block 0 and never again; each block moves it (its
+        end, least, most on the way) in counts, from where the block began."""
+        n = 40
+        zeros, stepped = np.zeros((n, 3)), np.zeros((n, 3))
+        unseen, bounds = np.zeros((n, 3)), np.zeros((n, 3, 2))
+        stepped[0, 1] = way
+        for k, (end, least, most) in enumerate(moves):
+            unseen[k, 1], bounds[k, 1] = end * count, (least * count, most * count)
+        return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), zeros, zeros, zeros, zeros, stepped,
+                      zeros, zeros, zeros, zeros, unseen, bounds)
+
+    thresholds = learn([blocks(0, [])], np.full(3, count), 0.01)
+    assert thresholds.stuck_margin == pytest.approx([0.1 * count] * 3)
+
+    def stuck_at(way: int, moves) -> float | None:
+        alarms = [a for a in assess(blocks(way, moves), thresholds)[0] if a.kind == "stuck_encoder"]
+        assert all(a.axis == "slew" for a in alarms)
+        return alarms[0].time_s if alarms else None
+
+    ahead = [(0.3, 0.0, 0.3)] * 3  # 0.9 of a count on, in three blocks
+    assert stuck_at(+1, ahead) is None and stuck_at(-1, [(-a, -b, -a) for a, _, b in ahead]) is None
+    assert stuck_at(0, ahead) is None and stuck_at(0, [(-a, -b, -a) for a, _, b in ahead]) is None
+    assert stuck_at(+1, ahead + [(0.3, 0.0, 0.3)]) == 4.0  # 1.2 counts on: past the next boundary
+    assert stuck_at(0, ahead + [(0.3, 0.0, 0.3)]) == 4.0  # more than a count, whichever way
+    assert stuck_at(+1, [(0.0, 0.0, 0.0), (-0.15, -0.15, 0.0)]) == 2.0  # back across the boundary it crossed
+    assert stuck_at(-1, [(0.0, 0.0, 0.0), (0.15, 0.0, 0.15)]) == 2.0
+    assert stuck_at(0, [(0.0, 0.0, 0.0), (-0.15, -0.15, 0.0)]) is None  # where in its count, unknown
+    assert stuck_at(+1, [(0.0, 0.0, 0.0), (0.0, -0.2, 0.0)]) == 2.0  # back and forth within a block
+    assert stuck_at(+1, [(0.0, 0.0, 0.0), (-0.05, -0.05, 0.0)]) is None  # within the margin
 
 
 def test_thresholds_learned_on_several_logs_see_what_each_log_shows():
@@ -278,8 +323,8 @@ def test_thresholds_learned_on_several_logs_see_what_each_log_shows():
         if excursion:
             force[150:180, 1] -= 1.5e3  # 30 s of the slew's force 1.5 sigma short
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
-                      rng.normal(0.0, 1e-4, (n, 3)), np.zeros((n, 3), bool), zeros, rng.normal(-1e3, 1e2, (n, 3)),
-                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros)
+                      rng.normal(0.0, 1e-4, (n, 3)), zeros, zeros, rng.normal(-1e3, 1e2, (n, 3)),
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)))
 
     quiet, rough = blocks(300), blocks(300, excursion=True)
     once, twice = learn([quiet], counts, 0.01), learn([quiet, quiet], counts, 0.01)

@@ -13,10 +13,16 @@ is isolated to the hypothesis whose statistic is then the largest (the most like
 that best explains what the residuals did). Each class and axis is raised once, and a change
 that began before the last alarm is the fault that alarm named.
 
-A stuck encoder is decided without a test: its reading has not changed since the axis, by its
-drive's speed feedback, moved more than STUCK_COUNTS counts of the encoder (off for an encoder
-the fault-free log never saw step: its count is unknown). The distance is counted from the
-reading's last change, within a block and across the blocks it stays unchanged through.
+A stuck encoder is decided without a test, by where its reading allows the axis to be. A
+reading changes as the axis crosses a boundary between two counts, so from its last change on,
+while it stays the same, the axis is within one count beyond that boundary in the way it
+crossed it: by its drive's speed feedback, an axis that moves back across the boundary, or on
+past the next one, has an encoder that no longer counts. Where the reading has not changed since
+the log began (or a gap), the axis is somewhere within its count, and more than a count of
+motion either way is needed. The motion is counted from the reading's last change, within a
+block and across the blocks it stays unchanged through, and is allowed a margin learned from
+the fault-free logs (the speed feedback's error, a coupling's play; at least STUCK_FLOOR of a
+count). Off for an encoder the fault-free logs never saw step: its count is unknown.
 
 Thresholds: a threshold for `per_hour` false alarms per hour makes one test of the WINDOW onsets
 each block as unlikely to exceed it as the hours ask (Bonferroni over the tests of an hour, on
@@ -49,7 +55,7 @@ WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 ONSET_DROP = float(chi2.ppf(0.95, 1))
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
 ISOLATE = 5  # blocks between a fault's detection and its isolation
-STUCK_COUNTS = 3  # encoder counts an axis must move in a block for an unmoving reading to be stuck
+STUCK_FLOOR = 0.1  # of an encoder count: the least margin beyond its count an unchanged reading allows
 # The classes, what each means for maintenance (docs/shadow.md), and which way its size goes.
 CLASSES = {
     "friction_rise": "a bearing, gearbox or bogie seizing: inspect and lubricate the axis",
@@ -63,9 +69,9 @@ CLASSES = {
 @dataclass(frozen=True)
 class Thresholds:
     """What a fault-free log taught: per axis the noise of the force residual (N, N m) and of
-    the drift residual (m/s, rad/s), their means, the encoder counts (m, rad; None for an
-    encoder the log never saw step: its stuck test is off), and the GLR
-    threshold of each hypothesis, for `per_hour` false alarms an hour."""
+    the drift residual (m/s, rad/s), their means, the encoder counts and the margin beyond them
+    the stuck test allows (m, rad; None for an encoder the log never saw step: its stuck test is
+    off), and the GLR threshold of each hypothesis, for `per_hour` false alarms an hour."""
 
     per_hour: float
     force_mean: list[float]
@@ -73,6 +79,7 @@ class Thresholds:
     drift_mean: list[float]
     drift_sigma: list[float]
     counts: list[float | None]
+    stuck_margin: list[float | None]
     thresholds: dict[str, float]
     bias: dict[str, float]
     block_s: float = BLOCK
@@ -98,8 +105,8 @@ class Thresholds:
 class Alarm:
     """A fault found: its class and axis ("wheel end" for a mass change), the time it was raised,
     its estimated onset and size (`size` in `unit`; a stuck encoder's, how far the axis moved
-    unseen when it was raised), and the statistic against its threshold (a stuck encoder's: that
-    distance against STUCK_COUNTS counts).
+    unseen when it was raised), and the statistic against its threshold (a stuck encoder's: how
+    far the axis went beyond where the reading allows it, against the learned margin, m or rad).
 
     Of a fault found by its GLR test, `onset_range_s`: the earliest and the latest onset (s) the
     residuals leave possible at 95 % (ONSET_DROP). While the fault's axis does nothing that shows
@@ -227,8 +234,10 @@ def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresh
     if not (per_hour > 0):
         raise BwrError(f"--false-alarms-per-hour must be > 0, got {per_hour}")
     counts = [float(c) if np.isfinite(c) else None for c in counts]  # None: never seen to step
+    beyond = [None if c is None else float(_unseen_runs(blocks, j, c)[0].max(initial=-c)) for j, c in enumerate(counts)]
+    stuck_margin = [None if c is None else max(STUCK_FLOOR * c, MARGIN * b) for c, b in zip(counts, beyond)]
     base = Thresholds(per_hour, blocks.force.mean(0).tolist(), _sigma(blocks.force), blocks.drift.mean(0).tolist(),
-                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, {}, {})
+                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, stuck_margin, {}, {})
     bias = {}
     for h in HYPOTHESES:  # the size each fault seems to have on the fault-free machine: its controller's share
         r, _, biased = _raw(blocks, base, h)
@@ -346,38 +355,40 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray
 
 
 def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
-    """An encoder whose reading has not changed while the axis moved by more than STUCK_COUNTS of
-    its counts: counted from its reading's last change (Blocks.unseen), across blocks while it
-    stays unchanged, so a stuck encoder is seen as soon as the axis has moved that far, not a
-    whole still block later."""
+    """An encoder whose reading has not changed while the axis, by its speed feedback, went
+    further than the reading allows it (the module's docstring) by more than the learned margin."""
     alarms = []
     for j in range(3):
         if t.counts[j] is None:  # an encoder never seen to step: how far is "moved" unknown
             continue
-        limit = STUCK_COUNTS * t.counts[j]
-        if blocks.unseen is None:  # without it, a whole block still
-            run, first = blocks.moved[:, j] * blocks.still[:, j], np.arange(len(blocks.start))
-        else:
-            joined = np.concatenate([[False], blocks.start[1:] <= blocks.end[:-1] + 1e-9])  # no gap before
-            run, first = _runs(blocks.unseen[:, j], blocks.still[:, j] & joined)
-        stuck = np.abs(run) > limit
+        beyond, run, first = _unseen_runs(blocks, j, t.counts[j])
+        stuck = beyond > t.stuck_margin[j]
         if stuck.any():
             k = int(np.argmax(stuck))
             alarms.append(Alarm("stuck_encoder", AXES[j], float(blocks.end[k]), float(blocks.start[first[k]]),
                                 float(run[k] * (1.0 if j == 0 else math.degrees(1.0))),
-                                ("m", "deg", "deg")[j], float(abs(run[k]) / limit), 1.0))
+                                ("m", "deg", "deg")[j], float(beyond[k]), float(t.stuck_margin[j])))
     return alarms
 
 
-def _runs(unseen: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(blocks,) how far the axis moved unseen by its encoder up to each block's end, summed over
-    the blocks its reading stayed unchanged through (`still`: unchanged through the block, and
-    no gap before it); and the block each such run began in."""
-    run, first = np.empty_like(unseen), np.empty(len(unseen), dtype=np.int64)
-    total, began = 0.0, 0
-    for k, (moved, unchanged) in enumerate(zip(unseen, still)):
-        if not unchanged:
-            total, began = 0.0, k
-        total += moved
+def _unseen_runs(blocks: Blocks, j: int, count: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(blocks,) of axis j: how far beyond where its unchanged reading allows it the axis went
+    at most within each block (m, rad; negative: that much short of it); how far it moved since
+    the reading's last change, up to the block's end; and the block that change was in. The
+    motion is summed over the blocks the reading stays unchanged through and no gap precedes."""
+    joined = np.concatenate([[False], blocks.start[1:] <= blocks.end[:-1] + 1e-9])
+    beyond, run = np.empty(len(blocks.start)), np.empty(len(blocks.start))
+    first = np.empty(len(blocks.start), dtype=np.int64)
+    total, way, began = 0.0, 0.0, 0
+    for k in range(len(blocks.start)):
+        if blocks.stepped[k, j] != 0 or not joined[k]:  # a new reading, or none known after a gap
+            total, way, began = 0.0, float(blocks.stepped[k, j]), k
+        low, high = total + blocks.unseen_bounds[k, j]
+        total += blocks.unseen[k, j]
+        if way:  # within one count past the boundary it crossed, the way it crossed it
+            ahead, back = (high, -low) if way > 0 else (-low, high)
+            beyond[k] = max(ahead - count, back)
+        else:  # anywhere within its count
+            beyond[k] = max(high, -low) - count
         run[k], first[k] = total, began
-    return run, first
+    return beyond, run, first

@@ -63,11 +63,13 @@ class Blocks:
     start, end: (blocks,) s; force: the force residual (N, N m); position, speed: the twin's
     prediction residuals at the block's end (m, rad; m/s, rad/s); drift: the encoder's mean
     speed over the block less the drives' speed feedback's (m/s, rad/s; 0 without feedback);
-    still: whether the encoder read the same position through the block; moved: how far the
-    axis moved over it by the speed feedback (by the twin without it) (m, rad);
+    stepped: the way the encoder's reading last changed in the block, +1 up, -1 down, 0 it read
+    the same position through the block; moved: how far the axis moved over the block by the
+    speed feedback (by the twin without it) (m, rad);
     friction, derate, mass: the signatures of a unit friction rise, derate and mass change;
-    unseen: how far the speed feedback moved the axis since the encoder's reading last changed
-    in the block (over the whole block if it did not change) (m, rad; None: not known);
+    unseen: how far the axis moved since the reading's last change in the block (over the whole
+    block if it did not change), by the speed feedback (by the twin without it) (m, rad), and
+    `unseen_bounds` (blocks, 3, 2) the least and the most of that motion on the way;
     wind: the measured wind's mean force over the block (N, N m; None: not known, as still air).
     """
 
@@ -77,12 +79,13 @@ class Blocks:
     position: np.ndarray
     speed: np.ndarray
     drift: np.ndarray
-    still: np.ndarray
+    stepped: np.ndarray
     moved: np.ndarray
     friction: np.ndarray
     derate: np.ndarray
     mass: np.ndarray
-    unseen: np.ndarray | None = None
+    unseen: np.ndarray
+    unseen_bounds: np.ndarray
     wind: np.ndarray | None = None
 
 
@@ -119,8 +122,8 @@ class ShadowTwin:
         rows = [self._block(measured, i0, i0 + per_block) for i0 in bounds]
         if not rows:
             empty = np.zeros((0, 3))
-            return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, np.zeros((0, 3), bool), empty,
-                          empty, empty, empty, empty, empty)
+            return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, empty, empty, empty, empty, empty,
+                          empty, np.zeros((0, 3, 2)), empty)
         columns = list(zip(*rows))
         return Blocks(*(np.array(c) for c in columns))
 
@@ -137,23 +140,27 @@ class ShadowTwin:
         weights = dt / dt.sum()
         q_end, qd_end = self._predict(m.q[i0], qd[i0], force, dt[:, 0], wind)
         span = m.time[i1] - m.time[i0]
+        # The reading's last change: sample i0 + n + 1 differs from i0 + n at the last n of `change`.
+        change = np.diff(m.q[i0 : i1 + 1], axis=0)
+        changed = change != 0
+        last = np.where(changed.any(axis=0), i1 - i0 - 1 - np.argmax(changed[::-1], axis=0), -1)
+        stepped = np.sign(change[np.maximum(last, 0), np.arange(3)]) * (last >= 0)
         if m.speed is not None:
             steps = m.speed[i0:i1] * dt
             moved = steps.sum(axis=0)
             drift = (m.q[i1] - m.q[i0] - moved) / span
-            # The motion after the reading's last change: sample i's step ends at i + 1, so the steps
-            # from the last sample whose reading differs from the one before it on.
-            changed = np.diff(m.q[i0 : i1 + 1], axis=0) != 0  # (i1 - i0, 3): sample i0 + n + 1 differs from i0 + n
-            last = np.where(changed.any(axis=0), i1 - i0 - 1 - np.argmax(changed[::-1], axis=0), -1)
-            after = np.arange(i1 - i0)[:, None] > last[None, :]
-            unseen = (steps * after).sum(axis=0)
+            # The motion after the reading's last change: sample i's step ends at i + 1, so the
+            # steps from the first sample with the new reading on.
+            unseen_path = np.cumsum(steps * (np.arange(i1 - i0)[:, None] > last[None, :]), axis=0)
         else:
             moved, drift = q_end - m.q[i0], np.zeros(3)
-            unseen = np.where(np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved, 0.0)
+            unseen_path = np.where(last >= 0, 0.0, moved)[None, :]  # the twin's motion, at the block's end only
+        unseen_bounds = np.stack([np.minimum(unseen_path.min(axis=0), 0.0), np.maximum(unseen_path.max(axis=0), 0.0)],
+                                 axis=-1)
         return (m.time[i0], m.time[i1], ((needed - force) * weights).sum(axis=0), m.q[i1] - q_end,
-                qd[i1] - qd_end, drift, np.ptp(m.q[i0 : i1 + 1], axis=0) == 0, moved,
-                -(friction_force * weights).sum(axis=0), -(force * weights).sum(axis=0),
-                -((heavier - nominal) * weights).sum(axis=0), unseen, (wind * weights).sum(axis=0))
+                qd[i1] - qd_end, drift, stepped, moved, -(friction_force * weights).sum(axis=0),
+                -(force * weights).sum(axis=0), -((heavier - nominal) * weights).sum(axis=0), unseen_path[-1],
+                unseen_bounds, (wind * weights).sum(axis=0))
 
     def _wind_on(self, m: Measured, i0: int, i1: int, qd: np.ndarray) -> np.ndarray:
         """(i1 - i0, 3) the measured wind's force on the joints at samples i0 .. i1 - 1 (N, N m);
