@@ -94,7 +94,8 @@ class Thresholds:
             data = json.loads(path.read_text())
             thresholds = cls(**data)
         except (OSError, ValueError, TypeError) as exc:
-            raise BwrError(f"{path}: not a shadow's thresholds file ({exc})") from None
+            raise BwrError(f"{path}: not a shadow's thresholds file, or one an earlier version learned ({exc}): "
+                           "learn them again with --baseline") from None
         if thresholds.block_s != BLOCK or thresholds.window_blocks != WINDOW:
             raise BwrError(f"{path}: thresholds learned with blocks of {thresholds.block_s} s and a window of "
                            f"{thresholds.window_blocks}, this shadow uses {BLOCK} s and {WINDOW}: learn them again")
