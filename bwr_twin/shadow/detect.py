@@ -377,19 +377,16 @@ def _unseen_runs(blocks: Blocks, j: int, count: float) -> tuple[np.ndarray, np.n
     at most within each block (m, rad; negative: that much short of it); how far it moved since
     the reading's last change, up to the block's end; and the block that change was in. The
     motion is summed over the blocks the reading stays unchanged through and no gap precedes."""
+    n = len(blocks.start)
     joined = np.concatenate([[False], blocks.start[1:] <= blocks.end[:-1] + 1e-9])
-    beyond, run = np.empty(len(blocks.start)), np.empty(len(blocks.start))
-    first = np.empty(len(blocks.start), dtype=np.int64)
-    total, way, began = 0.0, 0.0, 0
-    for k in range(len(blocks.start)):
-        if blocks.stepped[k, j] != 0 or not joined[k]:  # a new reading, or none known after a gap
-            total, way, began = 0.0, float(blocks.stepped[k, j]), k
-        low, high = total + blocks.unseen_bounds[k, j]
-        total += blocks.unseen[k, j]
-        if way:  # within one count past the boundary it crossed, the way it crossed it
-            ahead, back = (high, -low) if way > 0 else (-low, high)
-            beyond[k] = max(ahead - count, back)
-        else:  # anywhere within its count
-            beyond[k] = max(high, -low) - count
-        run[k], first[k] = total, began
-    return beyond, run, first
+    stepped, unseen = blocks.stepped[:, j], blocks.unseen[:, j]
+    began = (stepped != 0) | ~joined  # a new reading, or none known after a gap
+    first = np.maximum.accumulate(np.where(began, np.arange(n), 0))
+    summed = np.cumsum(unseen)
+    before = summed - unseen - (summed - unseen)[first]  # moved since the change, to the block's start
+    low, high = before + blocks.unseen_bounds[:, j, 0], before + blocks.unseen_bounds[:, j, 1]
+    way = stepped[first]
+    # Within one count past the boundary it crossed, the way it crossed it; or anywhere within it.
+    beyond = np.where(way > 0, np.maximum(high - count, -low),
+                      np.where(way < 0, np.maximum(-low - count, high), np.maximum(high, -low) - count))
+    return beyond, before + unseen, first
