@@ -1,22 +1,26 @@
 """The live shadow as a real OPC UA client of `python -m bwr_twin.serve` playing the heavy machine
 (scenes/heavy_shadow.toml), driven by a PLC client (a per-axis PID at 10 Hz): thresholds learned
 from a fault-free machine's session; on the machine with a slew friction rise, the alarm names
-it, through a dropped connection that is reported and becomes a gap, with no false alarm; and
+it, through a dropped connection that is reported and becomes a gap, with no false alarm; the
+command line killed and started again watches on from the live machine with its thresholds; and
 a tag map for another machine, or a tag that is missing, is one line."""
 
 from __future__ import annotations
 
 import asyncio
 import json
+import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from asyncua import ua
 from conftest import ROOT
 from heavy_plc import HeavyPlc
-from test_serve import CALL_TIMEOUT, AlarmEvents, Launched, client, environment, free_port
+from test_serve import CALL_TIMEOUT, STARTUP_TIMEOUT, AlarmEvents, Launched, client, environment, free_port
+from test_shadow import ServedShadow
 
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import learn
@@ -219,6 +223,54 @@ async def windy_session(url: str, tags, shadows: list[LiveShadow]) -> None:
                 for shadow in shadows:
                     shadow.add(sample)
     await source.close()
+
+
+KILLED_AT = 4.0  # s of the machine: the shadow command line is killed, and started again a second later
+RESTARTED_FOR = 24.0  # s of the machine in all: the friction rise is named at about 17 s
+
+
+async def killed_and_restarted(url: str, thresholds: Path) -> tuple[ServedShadow, ServedShadow]:
+    """A PLC at 10 Hz in real time for RESTARTED_FOR s, the shadow command line subscribed from the start;
+    killed (SIGKILL) at KILLED_AT s and started again with the same thresholds a second later (the
+    machine, in lockstep, waits for it to listen)."""
+    options = ("--source", url, "--tags", str(TAGS), "--model", str(MJCF), "--thresholds", str(thresholds))
+    first, second = ServedShadow(*options), None
+    first.wait_for("serving the shadow at", STARTUP_TIMEOUT)
+    try:
+        async with client(url) as connection:
+            plc = await HeavyPlc.attach(connection, STEP, 0.01)
+            for cycle in range(1, round(RESTARTED_FOR / (STEP * 0.01)) + 1):
+                await plc.cycle()
+                await asyncio.sleep(STEP * 0.01)  # the machine's own pace
+                if cycle == round(KILLED_AT / (STEP * 0.01)):
+                    first.stop_signal = signal.SIGKILL
+                    first.stop()
+                elif cycle == round((KILLED_AT + 1.0) / (STEP * 0.01)):
+                    second = ServedShadow(*options)
+                    second.wait_for("serving the shadow at", STARTUP_TIMEOUT)
+            second.wait_for('{"event": "alarm"', CALL_TIMEOUT)  # however far behind a busy machine leaves it
+    finally:
+        first.stop()
+        if second is not None:
+            second.stop()
+    return first, second
+
+
+def test_killed_and_restarted_the_shadow_resumes_from_the_live_machine_with_its_thresholds(thresholds, tmp_path):
+    """The command line watching the served machine (a slew friction rise from 8 s) is killed
+    before the fault and started again with the same thresholds file: it watches the machine from
+    where it is, and names the friction rise, with nothing else raised or lost."""
+    kept = tmp_path / "thresholds.json"
+    thresholds.write(kept)
+    faulty = faulty_scene(tmp_path, 'kind = "friction_rise"\naxis = "slew"\npercent = 60.0')
+    first, second = served(faulty, lambda url: killed_and_restarted(url, kept))
+    assert first.returncode == -signal.SIGKILL
+    assert [line for line in first.lines if line.startswith("{")] == []  # nothing to say before the fault
+    events = [json.loads(line) for line in second.lines if line.startswith("{")]
+    alarms = [e for e in events if e["event"] == "alarm"]
+    assert [(a["kind"], a["axis"]) for a in alarms] == [("friction_rise", "slew")], (events, second.stderr)
+    assert alarms[0]["time_s"] > KILLED_AT + 1.0 and alarms[0]["time_s"] >= ONSET
+    assert not [e for e in events if e["event"] in ("source_lost", "gap")], events
 
 
 def test_the_live_shadow_reads_the_anemometer_and_takes_no_gust_for_a_fault(twin, thresholds, tmp_path):
