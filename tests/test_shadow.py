@@ -289,6 +289,9 @@ def test_a_stuck_encoder_is_where_its_reading_no_longer_allows_the_axis_to_be():
 
     thresholds = learn([blocks(0, [])], np.full(3, count), 0.01)
     assert thresholds.stuck_margin == pytest.approx([0.1 * count] * 3)
+    # Learned on two logs, each 0.6 of a count unseen at its end and its start: not one run of 1.2
+    ends, starts = blocks(0, [(0.0, 0.0, 0.0)] * 39 + [(0.6, 0.0, 0.6)]), blocks(0, [(0.6, 0.0, 0.6)])
+    assert learn([ends, starts], np.full(3, count), 0.01).stuck_margin == pytest.approx([0.1 * count] * 3)
 
     def stuck_at(way: int, moves) -> float | None:
         alarms = [a for a in assess(blocks(way, moves), thresholds)[0] if a.kind == "stuck_encoder"]

@@ -32,6 +32,7 @@ from bwr_twin.config.scene import load_scene
 from bwr_twin.model.machine import Machine
 from bwr_twin.results.run_files import read_timeseries
 from bwr_twin.results.rundir import write_run
+from bwr_twin.shadow.detect import beyond_readings
 from bwr_twin.shadow.twin import ShadowTwin
 from bwr_twin.shadow.watch import learn_from, watch
 from bwr_twin.sim.lockstep import simulate
@@ -145,17 +146,24 @@ def main() -> None:
 
     runs = max(1, round(args.fault_free_hours * 3600 / LOG_S))
     false_alarms, watched_s, took = 0, 0.0, 0.0
+    counts = np.array([c if c is not None else np.nan for c in thresholds.counts])
+    furthest = np.full(3, -np.inf)  # of a count: the stuck test's headroom on the fault-free logs
     for seed in range(2000, 2000 + runs):
         folder = run(args.out, f"fault_free-{seed}", seed)
         started = time.perf_counter()
         watched = watch(twin, folder, thresholds, ignore_wind=args.ignore_wind)
         took += time.perf_counter() - started
         false_alarms += len(watched.alarms)
+        furthest = np.fmax(furthest, beyond_readings(watched.blocks, thresholds.counts) / counts)
         watched_s += float(watched.measured.time[-1] - watched.measured.time[0])
     print(f"\nfalse alarms: {false_alarms} over {watched_s / 3600:.2f} h of fault-free logs ({runs} seeds), target 0 "
           "over 50 h")
     print(f"offline speed: {watched_s:.0f} s of log in {took:.1f} s on one core = {watched_s / took:.0f}x real time "
           "(target >= 100x)")
+    margins = [m / c if m is not None else np.nan for m, c in zip(thresholds.stuck_margin, counts)]
+    print("stuck test: the furthest a fault-free axis went beyond where its reading allows it, "
+          + ", ".join(f"{axis} {f:+.3f}" for axis, f in zip(("travel", "slew", "luff"), furthest))
+          + " of a count; the margin learned, " + ", ".join(f"{m:.3f}" for m in margins))
 
 
 if __name__ == "__main__":

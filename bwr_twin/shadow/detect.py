@@ -235,8 +235,8 @@ def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresh
     if not (per_hour > 0):
         raise BwrError(f"--false-alarms-per-hour must be > 0, got {per_hour}")
     counts = [float(c) if np.isfinite(c) else None for c in counts]  # None: never seen to step
-    beyond = [None if c is None else float(_unseen_runs(blocks, j, c)[0].max(initial=-c)) for j, c in enumerate(counts)]
-    stuck_margin = [None if c is None else max(STUCK_FLOOR * c, MARGIN * b) for c, b in zip(counts, beyond)]
+    stuck_margin = [None if c is None else max(STUCK_FLOOR * c, MARGIN * float(b))
+                    for c, b in zip(counts, beyond_readings(blocks, counts))]
     base = Thresholds(per_hour, blocks.force.mean(0).tolist(), _sigma(blocks.force), blocks.drift.mean(0).tolist(),
                       _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, stuck_margin, {}, {})
     bias = {}
@@ -372,13 +372,22 @@ def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     return alarms
 
 
+def beyond_readings(blocks: Blocks, counts: Sequence[float | None]) -> np.ndarray:
+    """(3,) per axis the furthest it went beyond where its unchanged reading allows it over the
+    blocks (m, rad; negative: it stayed that far inside; NaN for an encoder whose count is
+    unknown): on fault-free logs, what the stuck test's margin is learned from."""
+    return np.array([math.nan if c is None or not len(blocks.start) else float(_unseen_runs(blocks, j, c)[0].max())
+                     for j, c in enumerate(counts)])
+
+
 def _unseen_runs(blocks: Blocks, j: int, count: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(blocks,) of axis j: how far beyond where its unchanged reading allows it the axis went
     at most within each block (m, rad; negative: that much short of it); how far it moved since
     the reading's last change, up to the block's end; and the block that change was in. The
     motion is summed over the blocks the reading stays unchanged through and no gap precedes."""
     n = len(blocks.start)
-    joined = np.concatenate([[False], blocks.start[1:] <= blocks.end[:-1] + 1e-9])
+    # A block that starts where the one before ended; not after a gap, nor at another log's start
+    joined = np.concatenate([[False], np.abs(blocks.start[1:] - blocks.end[:-1]) <= 1e-9])
     stepped, unseen = blocks.stepped[:, j], blocks.unseen[:, j]
     began = (stepped != 0) | ~joined  # a new reading, or none known after a gap
     first = np.maximum.accumulate(np.where(began, np.arange(n), 0))
