@@ -9,6 +9,7 @@ import json
 import signal
 import subprocess
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -154,11 +155,15 @@ def test_the_command_line_writes_events_and_thresholds_it_can_reuse(logs, tmp_pa
     assert (tmp_path / "again" / "events.jsonl").read_text() == (out / "events.jsonl").read_text()
 
 
-def test_bad_input_is_one_line(logs, tmp_path):
+def test_bad_input_is_one_line(logs, thresholds, tmp_path):
     junk = tmp_path / "thresholds.json"
     junk.write_text("{}")
+    crafted = tmp_path / "crafted.json"  # a learned file with one value of the wrong type
+    crafted.write_text(json.dumps({**asdict(thresholds), "stuck_margin": ["x", 1.0, 1.0]}))
     for args, says in ((["--log", str(tmp_path / "nowhere"), "--baseline", str(logs["baseline"])], "no log there"),
                        (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file"),
+                       (["--log", str(logs["baseline"]), "--thresholds", str(crafted)],
+                        "stuck_margin must be three finite numbers"),
                        (["--log", str(logs["baseline"]), "--thresholds", str(junk), "--serve", "http://127.0.0.1:4841"],
                         "--serve must be an opc.tcp://HOST:PORT address")):
         done = subprocess.run([sys.executable, "-m", "bwr_twin.shadow", *args, "--model", str(MJCF),

@@ -96,10 +96,32 @@ class Thresholds:
         except (OSError, ValueError, TypeError) as exc:
             raise BwrError(f"{path}: not a shadow's thresholds file, or one an earlier version learned ({exc}): "
                            "learn them again with --baseline") from None
+        _check_values(path, thresholds)
         if thresholds.block_s != BLOCK or thresholds.window_blocks != WINDOW:
             raise BwrError(f"{path}: thresholds learned with blocks of {thresholds.block_s} s and a window of "
                            f"{thresholds.window_blocks}, this shadow uses {BLOCK} s and {WINDOW}: learn them again")
         return thresholds
+
+
+def _check_values(path: Path, t: Thresholds) -> None:
+    """BwrError naming the key of a thresholds file whose value is not what the shadow learns:
+    three finite numbers per axis (None where an encoder's count is unknown), finite numbers by
+    hypothesis, a positive rate."""
+    def number(value, nullable: bool = False) -> bool:
+        return (value is None and nullable) or (isinstance(value, (int, float)) and not isinstance(value, bool)
+                                                and math.isfinite(value))
+
+    for key in ("force_mean", "force_sigma", "drift_mean", "drift_sigma", "counts", "stuck_margin"):
+        value = getattr(t, key)
+        if not (isinstance(value, list) and len(value) == 3
+                and all(number(v, key in ("counts", "stuck_margin")) for v in value)):
+            raise BwrError(f"{path}: {key} must be three finite numbers, one per axis, got {value!r}")
+    for key in ("thresholds", "bias"):
+        value = getattr(t, key)
+        if not (isinstance(value, dict) and all(number(v) for v in value.values())):
+            raise BwrError(f"{path}: {key} must map each hypothesis to a finite number, got {value!r}")
+    if not (number(t.per_hour) and t.per_hour > 0):
+        raise BwrError(f"{path}: per_hour must be a rate > 0, got {t.per_hour!r}")
 
 
 @dataclass(frozen=True)
