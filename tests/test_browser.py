@@ -494,7 +494,7 @@ def test_the_shadows_view_shows_the_machine_its_ghost_and_the_alarms(browser):
     n, zeros = 30, np.zeros((30, 3))
     residual = np.tile([0.0, 0.02, 0.0], (n, 1))  # the slew 0.02 rad (1.1 deg) ahead of its twin
     blocks = Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), zeros + 1e5, residual, zeros, zeros,
-                    zeros, zeros, zeros, zeros, zeros, zeros, np.zeros((n, 3, 2)))
+                    zeros, zeros, zeros, zeros, zeros, zeros, np.zeros((n, 3, 2)), np.full(n, 10))
     alarm = Alarm("friction_rise", "slew", 30.0, 12.0, 27.9, "%", 80.0, 40.0)
     health = {"travel": 100.0, "slew": 0.0, "luff": 96.0, "wheel end": 100.0}
     with ThreadPoolExecutor(1) as other:

@@ -160,10 +160,15 @@ def test_bad_input_is_one_line(logs, thresholds, tmp_path):
     junk.write_text("{}")
     crafted = tmp_path / "crafted.json"  # a learned file with one value of the wrong type
     crafted.write_text(json.dumps({**asdict(thresholds), "stuck_margin": ["x", 1.0, 1.0]}))
+    slower = tmp_path / "slower.json"  # learned on a log at 10 Hz; this one is at 100 Hz
+    slower.write_text(json.dumps({**asdict(thresholds), "sample_s": 0.1}))
     for args, says in ((["--log", str(tmp_path / "nowhere"), "--baseline", str(logs["baseline"])], "no log there"),
                        (["--log", str(logs["baseline"]), "--thresholds", str(junk)], "not a shadow's thresholds file"),
                        (["--log", str(logs["baseline"]), "--thresholds", str(crafted)],
                         "stuck_margin must be three finite numbers"),
+                       (["--log", str(logs["baseline"]), "--thresholds", str(slower)],
+                        "the samples come every 10 ms, and the thresholds' sample_s says they were learned on "
+                        "samples every 100 ms"),
                        (["--log", str(logs["baseline"]), "--thresholds", str(junk), "--serve", "http://127.0.0.1:4841"],
                         "--serve must be an opc.tcp://HOST:PORT address")):
         done = subprocess.run([sys.executable, "-m", "bwr_twin.shadow", *args, "--model", str(MJCF),
@@ -258,7 +263,8 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
             force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
                       rng.normal(0.0, 1e-4, (n, 3)), zeros, zeros, friction,
-                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)), zeros)
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)),
+                      np.full(n, 100), zeros)
 
     thresholds = learn([blocks(200)], np.array([1e-3, 1e-3, 1e-3]), 0.01)
     series = blocks(400, fault_from=250)
@@ -290,7 +296,7 @@ def test_a_stuck_encoder_is_where_its_reading_no_longer_allows_the_axis_to_be():
         for k, (end, least, most) in enumerate(moves):
             unseen[k, 1], bounds[k, 1] = end * count, (least * count, most * count)
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), zeros, zeros, zeros, zeros, stepped,
-                      zeros, zeros, zeros, zeros, unseen, bounds)
+                      zeros, zeros, zeros, zeros, unseen, bounds, np.full(n, 100))
 
     thresholds = learn([blocks(0, [])], np.full(3, count), 0.01)
     assert thresholds.stuck_margin == pytest.approx([0.1 * count] * 3)
@@ -332,7 +338,8 @@ def test_thresholds_learned_on_several_logs_see_what_each_log_shows():
             force[150:180, 1] -= 1.5e3  # 30 s of the slew's force 1.5 sigma short
         return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
                       rng.normal(0.0, 1e-4, (n, 3)), zeros, zeros, rng.normal(-1e3, 1e2, (n, 3)),
-                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)))
+                      rng.normal(-1e4, 1e2, (n, 3)), rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)),
+                      np.full(n, 100))
 
     quiet, rough = blocks(300), blocks(300, excursion=True)
     once, twice = learn([quiet], counts, 0.01), learn([quiet, quiet], counts, 0.01)

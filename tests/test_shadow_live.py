@@ -340,4 +340,5 @@ def _still_blocks():
 
     zeros = np.zeros((n, 3))
     return Blocks(np.arange(n, dtype=float), np.arange(1, n + 1, dtype=float), noise(1e3), zeros, zeros,
-                  noise(1e-4), zeros, zeros, noise(1e3), noise(1e3), noise(1e3), zeros, np.zeros((n, 3, 2)))
+                  noise(1e-4), zeros, zeros, noise(1e3), noise(1e3), noise(1e3), zeros, np.zeros((n, 3, 2)),
+                  np.full(n, 10))

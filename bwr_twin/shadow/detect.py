@@ -8,10 +8,13 @@ by the residual's noise, learned per axis from a fault-free log. Its largest val
 onsets is the hypothesis's statistic, the onset and size that give it the alarm's onset and
 size. The size a fault seems to have on the fault-free log is taken off first: a drive's force
 follows the disturbances its controller fights, so a fault-free machine looks a few per cent
-derated. A fault is detected when any statistic exceeds its threshold; ISOLATE blocks later it
-is isolated to the hypothesis whose statistic is then the largest (the most likely: the fault
-that best explains what the residuals did). Each class and axis is raised once, and a change
-that began before the last alarm is the fault that alarm named.
+derated. A derate is looked for only in the blocks where the force the twin needs to move the
+axis as measured stands PUSHES times the force residual's noise clear of zero: elsewhere (a
+travel or a slew standing still) the drive answers only forces the twin does not know, and its
+force says nothing of what it delivers. A fault is detected when any statistic exceeds its
+threshold; ISOLATE blocks later it is isolated to the hypothesis whose statistic is then the
+largest (the most likely: the fault that best explains what the residuals did). Each class and
+axis is raised once, and a change that began before the last alarm is the fault that alarm named.
 
 A stuck encoder is decided without a test, by where its reading allows the axis to be. A
 reading changes as the axis crosses a boundary between two counts, so from its last change on,
@@ -55,6 +58,8 @@ WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 ONSET_DROP = float(chi2.ppf(0.95, 1))
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
 ISOLATE = 5  # blocks between a fault's detection and its isolation
+PUSHES = 3.0  # the needed force, in the force residual's noise, of a block a derate shows in
+RATE_TOLERANCE = 1.25  # the watched samples' period may be this much shorter or longer than the learned one
 STUCK_FLOOR = 0.1  # of an encoder count: the least margin beyond its count an unchanged reading allows
 # The classes, what each means for maintenance (docs/shadow.md), and which way its size goes.
 CLASSES = {
@@ -71,7 +76,8 @@ class Thresholds:
     """What a fault-free log taught: per axis the noise of the force residual (N, N m) and of
     the drift residual (m/s, rad/s), their means, the encoder counts and the margin beyond them
     the stuck test allows (m, rad; None for an encoder the log never saw step: its stuck test is
-    off), and the GLR threshold of each hypothesis, for `per_hour` false alarms an hour."""
+    off), the GLR threshold of each hypothesis, for `per_hour` false alarms an hour, and the
+    period of the samples learned on (s): a block's noise depends on how many samples it holds."""
 
     per_hour: float
     force_mean: list[float]
@@ -82,6 +88,7 @@ class Thresholds:
     stuck_margin: list[float | None]
     thresholds: dict[str, float]
     bias: dict[str, float]
+    sample_s: float
     block_s: float = BLOCK
     window_blocks: int = WINDOW
 
@@ -120,8 +127,9 @@ def _check_values(path: Path, t: Thresholds) -> None:
         value = getattr(t, key)
         if not (isinstance(value, dict) and all(number(v) for v in value.values())):
             raise BwrError(f"{path}: {key} must map each hypothesis to a finite number, got {value!r}")
-    if not (number(t.per_hour) and t.per_hour > 0):
-        raise BwrError(f"{path}: per_hour must be a rate > 0, got {t.per_hour!r}")
+    for key in ("per_hour", "sample_s"):
+        if not (number(getattr(t, key)) and getattr(t, key) > 0):
+            raise BwrError(f"{path}: {key} must be a number > 0, got {getattr(t, key)!r}")
 
 
 @dataclass(frozen=True)
@@ -200,8 +208,11 @@ def _raw(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.
     r = (blocks.force - mean) / sigma
     s = {"friction_rise": blocks.friction, "drive_derate": blocks.derate, "mass_change": blocks.mass}[h.kind] / sigma
     biased = s
-    if h.kind == "drive_derate" and blocks.wind is not None:
-        biased = (blocks.derate - blocks.wind) / sigma  # -(drive force + wind force)
+    if h.kind == "drive_derate":
+        if blocks.wind is not None:
+            biased = (blocks.derate - blocks.wind) / sigma  # -(drive force + wind force)
+        pushes = np.abs(blocks.force - blocks.derate) > PUSHES * sigma  # the force needed: residual + drive's
+        s, biased = s * pushes, biased * pushes
     if h.axis >= 0:
         return r[:, h.axis], s[:, h.axis], biased[:, h.axis]
     return r.ravel(), s.ravel(), biased.ravel()  # every axis: (blocks x 3,), summed by block below
@@ -260,7 +271,8 @@ def learn(logs: Sequence[Blocks], counts: np.ndarray, per_hour: float) -> Thresh
     stuck_margin = [None if c is None else max(STUCK_FLOOR * c, MARGIN * float(b))
                     for c, b in zip(counts, beyond_readings(blocks, counts))]
     base = Thresholds(per_hour, blocks.force.mean(0).tolist(), _sigma(blocks.force), blocks.drift.mean(0).tolist(),
-                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, stuck_margin, {}, {})
+                      _sigma(blocks.drift, floor=_known(counts) / BLOCK / math.sqrt(6)), counts, stuck_margin, {}, {},
+                      sample_period(blocks))
     bias = {}
     for h in HYPOTHESES:  # the size each fault seems to have on the fault-free machine: its controller's share
         r, _, biased = _raw(blocks, base, h)
@@ -316,6 +328,7 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
     blocks ago is not isolated yet, so that live and offline name it on the same evidence."""
     if not len(blocks.start):
         return [], dict.fromkeys(SOURCES, 100.0)
+    _check_rate(blocks, t)
     alarms = _stuck(blocks, t)
     # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
     blind = {AXES.index(a.axis): a.time_s for a in alarms}
@@ -351,6 +364,22 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
         worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
         health[source] = 0.0 if any(a.axis == source for a in alarms) else 100.0 * max(0.0, 1.0 - float(worst))
     return sorted(alarms, key=lambda a: a.time_s), health
+
+
+def sample_period(blocks: Blocks) -> float:
+    """s: the period of the samples the blocks are made of (their median)."""
+    return float(np.median((blocks.end - blocks.start) / blocks.samples))
+
+
+def _check_rate(blocks: Blocks, t: Thresholds) -> None:
+    """BwrError if the blocks' samples come at another rate than the thresholds were learned at:
+    fewer samples a block make its residuals noisier than the thresholds allow for, more make
+    the thresholds blunt."""
+    period = sample_period(blocks)
+    if not t.sample_s / RATE_TOLERANCE <= period <= t.sample_s * RATE_TOLERANCE:
+        raise BwrError(f"the samples come every {period * 1e3:.4g} ms, and the thresholds' sample_s says they were "
+                       f"learned on samples every {t.sample_s * 1e3:.4g} ms: learn them from fault-free logs at the "
+                       "rate the shadow watches (--baseline)")
 
 
 def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
