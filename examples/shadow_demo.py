@@ -4,10 +4,13 @@ in lockstep) drives it along scenes/heavy_shadow.toml's path, and the live shado
 UA client, watches it and prints its events as they happen, and shows them in the browser: the
 machine as measured, its twin's ghost, the residuals and the alarms (bwr_twin.shadow.view).
 
-    python examples/shadow_demo.py [--seed N] [--view PORT]          # or: make shadow
+    python examples/shadow_demo.py [--seed N] [--view PORT] [--thresholds FILE]   # or: make shadow
 
-The shadow learns its thresholds from the first LEARN s, which are fault-free; the fault (a
-friction rise, a mass change or a derate, drawn from the seed) starts later.
+The fault (a friction rise, a mass change or a derate) and its start are drawn from the seed.
+The shadow's thresholds are learned as on a real machine, from fault-free logs of its usual
+work at the rate the shadow will see it: an hour of it, twelve runs of the same scene with
+other seeds under the PLC's PID at its 10 Hz, simulated before the demo starts (about 15 s);
+or read from --thresholds.
 """
 
 import argparse
@@ -24,25 +27,49 @@ import numpy as np
 from asyncua import Client
 from heavy_plc import HeavyPlc
 
-from bwr_twin.shadow.detect import learn
+from bwr_twin.config.scene import load_scene
+from bwr_twin.errors import exit_status
+from bwr_twin.progress import simulated_seconds
+from bwr_twin.results.rundir import write_run
+from bwr_twin.shadow.cli import DEFAULT_PER_HOUR
+from bwr_twin.shadow.detect import Thresholds
 from bwr_twin.shadow.live import LiveShadow, Source, read_once
-from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import ShadowTwin
 from bwr_twin.shadow.view import ShadowView
+from bwr_twin.shadow.watch import learn_from
+from bwr_twin.sim.lockstep import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "heavy_shadow.toml"
 MJCF = ROOT / "mjcf" / "bwr_heavy.xml"
 TAGS = ROOT / "examples" / "shadow_tags.toml"
 STEP, PERIOD = 10, 0.01  # control periods a PLC cycle, and their length in s
-SECONDS, LEARN = 300.0, 90.0  # s: the path, and its fault-free start the thresholds are learned on
+SECONDS = 300.0  # s: the path
+LEARN_ON = range(1000, 1012)  # the seeds of the fault-free logs the thresholds are learned on: an hour
 FAULTS = ('kind = "friction_rise"\naxis = "slew"\npercent = 40.0', 'kind = "mass_change"\nmass = 10000.0',
           'kind = "drive_derate"\naxis = "travel"\npercent = 20.0')
 
 
-async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
-    shadow = LiveShadow(twin, None, lambda event: print(json.dumps(event), flush=True))
+def learned(twin: ShadowTwin, folder: Path) -> Thresholds:
+    """Thresholds from an hour of fault-free logs of the scene, sampled as the shadow sees the
+    served machine: the PLC's cycle is their control and record period."""
+    logs, cycle = [], STEP * PERIOD
+    with simulated_seconds("fault-free logs to learn from") as progress:
+        for i, seed in enumerate(LEARN_ON):
+            scene, log = folder / f"fault-free-{seed}.toml", folder / f"fault-free-{seed}"
+            scene.write_text(f'extends = "{SCENE}"\n[simulation]\nseed = {seed}\ncontrol_period = {cycle}\n'
+                             f"record_period = {cycle}\n")
+            write_run(simulate(load_scene(scene), nthread=1), log, plots=False)
+            logs.append(log)
+            progress((i + 1) * SECONDS, len(LEARN_ON) * SECONDS)
+    thresholds = learn_from(twin, logs, DEFAULT_PER_HOUR)
+    print(f"thresholds learned on {len(logs) * SECONDS / 3600:g} h of fault-free logs; watching", flush=True)
+    return thresholds
+
+
+async def watch(url: str, twin: ShadowTwin, thresholds: Thresholds, view: ShadowView) -> None:
+    shadow = LiveShadow(twin, thresholds, lambda event: print(json.dumps(event), flush=True))
     source = Source(url, read_tags(TAGS, twin.model_name))
     await source.connect()
     async with Client(url, timeout=60, watchdog_intervall=60) as connection:
@@ -50,22 +77,23 @@ async def watch(url: str, twin: ShadowTwin, view: ShadowView) -> None:
         for cycle in range(round(SECONDS / (STEP * PERIOD))):
             await plc.cycle()
             await read_once(source, shadow, print, [view])
-            if shadow.thresholds is None and shadow.time >= LEARN:
-                shadow.thresholds = learn([shadow.blocks()], encoder_counts(shadow.measured()), 0.01)
-                print(f"thresholds learned on the first {LEARN:g} s; watching", flush=True)
             if cycle % 300 == 0:
                 print(f"t = {shadow.time:.0f} s", flush=True)
     await source.close()
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=None, help="draws the fault and its time (default: at random)")
     parser.add_argument("--view", type=int, default=8080, help="the view's port (default 8080; 0: a free one)")
+    parser.add_argument("--thresholds", type=Path, help="thresholds.json a shadow wrote (default: learned from an "
+                        "hour of fault-free logs)")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    fault, start = FAULTS[rng.integers(len(FAULTS))], float(round(rng.uniform(LEARN + 20, SECONDS - 60)))
+    fault, start = FAULTS[rng.integers(len(FAULTS))], float(round(rng.uniform(60.0, SECONDS - 60)))
+    twin = ShadowTwin(MJCF)
     with tempfile.TemporaryDirectory() as folder, socket.socket() as probe:
+        thresholds = Thresholds.read(args.thresholds) if args.thresholds else learned(twin, Path(folder))
         probe.bind(("127.0.0.1", 0))
         url = f"opc.tcp://127.0.0.1:{probe.getsockname()[1]}"
         probe.close()
@@ -77,10 +105,9 @@ def main() -> None:
             for line in server.stdout:
                 if line.startswith("Ctrl-C stops"):
                     break
-            twin = ShadowTwin(MJCF)
             view = ShadowView(twin.machine, port=args.view)
             print(f"the shadow's view: {view.url}", flush=True)
-            asyncio.run(watch(url, twin, view))
+            asyncio.run(watch(url, twin, thresholds, view))
         finally:
             server.terminate()
             server.wait(timeout=30)
@@ -91,7 +118,8 @@ def main() -> None:
             time.sleep(1.0)
     except KeyboardInterrupt:
         asyncio.run(view.stop())
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(exit_status(main, interrupted="interrupted"))
