@@ -140,6 +140,34 @@ def test_a_gap_is_a_gap_not_an_alarm(twin, logs, thresholds, tmp_path):
     assert [(e["event"], round(e["from_s"]), round(e["to_s"])) for e in watched.events()] == [("gap", 140, 160)]
 
 
+def test_the_live_shadow_finds_what_the_log_shows_keeping_one_block_of_samples(twin, logs, thresholds, tmp_path):
+    """A log with a gap, fed to the live shadow sample by sample: the same blocks, gap and alarm
+    as the shadow over the log; and it never holds more than a block of samples and the few it
+    tells a gap by, however long it runs."""
+    from bwr_twin.shadow.live import LiveShadow, Sample
+    from bwr_twin.shadow.measured import read_measured
+
+    lines = (logs["friction_rise"] / "timeseries.csv").read_text().splitlines()
+    times = [float(line.split(",", 1)[0]) for line in lines[1:]]
+    kept = [lines[0]] + [line for line, t in zip(lines[1:], times) if not 40.0 < t < 45.0]
+    (tmp_path / "timeseries.csv").write_text("\n".join(kept) + "\n")
+    offline = watch(twin, tmp_path / "timeseries.csv", thresholds)
+    m = read_measured(tmp_path / "timeseries.csv", twin.limits)
+    events: list[dict] = []
+    live, most = LiveShadow(twin, thresholds, events.append), 0
+    for k in range(len(m.time)):  # a sample's force tag is the force held over the period that ended at it
+        live.add(Sample(float(m.time[k]), m.q[k], m.speed[k], m.force[max(k - 1, 0)]))
+        most = max(most, len(live._samples))
+    blocks, n = live.blocks(), len(offline.blocks.start)
+    assert np.array_equal(blocks.start, offline.blocks.start[:n])
+    assert np.allclose(blocks.force, offline.blocks.force[:n]) and np.allclose(blocks.drift, offline.blocks.drift[:n])
+    assert live.gaps == offline.gaps and [round(g) for g in live.gaps[0]] == [40, 45]
+    assert [(a.kind, a.axis, a.time_s, a.onset_s) for a in live.alarms] == \
+        [(a.kind, a.axis, a.time_s, a.onset_s) for a in offline.alarms] != []
+    assert most <= round(1.0 / m.period) + 3, most
+    assert np.allclose(live.counts, [0.00153, 0.00153, 0.00076])
+
+
 def test_the_command_line_writes_events_and_thresholds_it_can_reuse(logs, tmp_path):
     out = tmp_path / "watched"
     command = [sys.executable, "-m", "bwr_twin.shadow", "--log", str(logs["friction_rise"]), "--model", str(MJCF)]

@@ -25,7 +25,6 @@ from test_shadow import ServedShadow
 from bwr_twin.errors import BwrError
 from bwr_twin.shadow.detect import learn
 from bwr_twin.shadow.live import APART, LiveShadow, Sample, Source, read_once
-from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.publish import ShadowServer, residual_ranges
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
@@ -89,7 +88,7 @@ def thresholds(twin, tmp_path_factory):
     baseline = LiveShadow(twin, None, free.append)
     served(SCENE, lambda url: missing_tag_then_session(url, wrong, baseline, free))
     assert free == []
-    return learn([baseline.blocks()], encoder_counts(baseline.measured()), 0.01)
+    return learn([baseline.blocks()], baseline.counts, 0.01)
 
 
 def faulty_scene(folder, fault: str):

@@ -29,7 +29,6 @@ from asyncua import Client
 
 from bwr_twin.shadow.detect import learn
 from bwr_twin.shadow.live import LiveShadow, Source, read_once
-from bwr_twin.shadow.measured import encoder_counts
 from bwr_twin.shadow.publish import ShadowServer, residual_ranges
 from bwr_twin.shadow.tags import read_tags
 from bwr_twin.shadow.twin import ShadowTwin
@@ -80,7 +79,7 @@ async def session(url: str, seconds: float) -> tuple[list[float], list[float], i
         for _ in range(round(seconds / (STEP * PERIOD))):
             await plc.cycle()
             if shadow.thresholds is None and shadow.time >= LEARN:
-                shadow.thresholds = thresholds = learn([shadow.blocks()], encoder_counts(shadow.measured()), 0.01)
+                shadow.thresholds = thresholds = learn([shadow.blocks()], shadow.counts, 0.01)
                 published.ranges = residual_ranges(twin.limits, twin.machine.rated_speed, thresholds)
                 await published.start()
             outputs = [published, stopwatch] if shadow.thresholds is not None else []
