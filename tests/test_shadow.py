@@ -140,10 +140,12 @@ def test_a_gap_is_a_gap_not_an_alarm(twin, logs, thresholds, tmp_path):
     assert [(e["event"], round(e["from_s"]), round(e["to_s"])) for e in watched.events()] == [("gap", 140, 160)]
 
 
-def test_the_live_shadow_finds_what_the_log_shows_keeping_one_block_of_samples(twin, logs, thresholds, tmp_path):
+def test_the_live_shadow_finds_what_the_log_shows_keeping_a_window(twin, logs, thresholds, tmp_path):
     """A log with a gap, fed to the live shadow sample by sample: the same blocks, gap and alarm
-    as the shadow over the log; and it never holds more than a block of samples and the few it
-    tells a gap by, however long it runs."""
+    as the shadow over the log. However long it runs, it holds no more than a block of samples
+    and the few it tells a gap by, and no more than twice the blocks it keeps: here 130, so that
+    after 260 s the older half goes and the detectors start again, raising nothing new."""
+    from bwr_twin.shadow.detect import assess
     from bwr_twin.shadow.live import LiveShadow, Sample
     from bwr_twin.shadow.measured import read_measured
 
@@ -154,16 +156,23 @@ def test_the_live_shadow_finds_what_the_log_shows_keeping_one_block_of_samples(t
     offline = watch(twin, tmp_path / "timeseries.csv", thresholds)
     m = read_measured(tmp_path / "timeseries.csv", twin.limits)
     events: list[dict] = []
-    live, most = LiveShadow(twin, thresholds, events.append), 0
+    live, most, blocks_held = LiveShadow(twin, thresholds, events.append, kept_blocks=130), 0, 0
     for k in range(len(m.time)):  # a sample's force tag is the force held over the period that ended at it
-        live.add(Sample(float(m.time[k]), m.q[k], m.speed[k], m.force[max(k - 1, 0)]))
+        if live.add(Sample(float(m.time[k]), m.q[k], m.speed[k], m.force[max(k - 1, 0)])):
+            blocks_held = max(blocks_held, len(live.blocks().start))
         most = max(most, len(live._samples))
-    blocks, n = live.blocks(), len(offline.blocks.start)
-    assert np.array_equal(blocks.start, offline.blocks.start[:n])
-    assert np.allclose(blocks.force, offline.blocks.force[:n]) and np.allclose(blocks.drift, offline.blocks.drift[:n])
+    blocks = live.blocks()
+    n = len(blocks.start)
+    assert n < 200 and blocks_held == 259 and blocks.end[-1] == offline.blocks.end[-1]
+    assert np.array_equal(blocks.start, offline.blocks.start[-n:])
+    assert np.allclose(blocks.force, offline.blocks.force[-n:]) and np.allclose(blocks.drift, offline.blocks.drift[-n:])
     assert live.gaps == offline.gaps and [round(g) for g in live.gaps[0]] == [40, 45]
     assert [(a.kind, a.axis, a.time_s, a.onset_s) for a in live.alarms] == \
         [(a.kind, a.axis, a.time_s, a.onset_s) for a in offline.alarms] != []
+    assert [e["event"] for e in events] == ["gap", "alarm"] and live.health["slew"] == 0.0
+    # The kept blocks alone would raise the friction rise again; knowing it was raised, nothing.
+    assert [(a.kind, a.axis) for a in assess(blocks, thresholds)[0]] == [("friction_rise", "slew")]
+    assert assess(blocks, thresholds, earlier=live.alarms) == ([], live.health)
     assert most <= round(1.0 / m.period) + 3, most
     assert np.allclose(live.counts, [0.00153, 0.00153, 0.00076])
 

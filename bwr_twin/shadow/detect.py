@@ -316,8 +316,8 @@ def detect(blocks: Blocks, t: Thresholds) -> list[Alarm]:
     return assess(blocks, t)[0]
 
 
-def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
-           complete: bool = True) -> tuple[list[Alarm], dict[str, float]]:
+def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *, complete: bool = True,
+           earlier: Sequence[Alarm] = ()) -> tuple[list[Alarm], dict[str, float]]:
     """The alarms over the log's blocks (as `detect`) and the health of each of SOURCES after the
     newest block, in %: 100 less 100 times the largest statistic of its hypotheses against its
     threshold, 0 at a threshold and below; 0 once an alarm named it.
@@ -325,13 +325,19 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
     `known`: a list kept between calls over a growing series of blocks (live), which holds the
     statistics of the blocks seen so far, so that each call computes only the new blocks'.
     `complete`: the blocks are the whole log; False (live), a fault detected fewer than ISOLATE
-    blocks ago is not isolated yet, so that live and offline name it on the same evidence."""
+    blocks ago is not isolated yet, so that live and offline name it on the same evidence.
+    `earlier`: the alarms already raised (live, where the older blocks are no longer kept): none
+    is raised again, a change that began before the last is the fault it named, a stuck
+    encoder's axis stays blind, and the health of what they named stays 0."""
     if not len(blocks.start):
         return [], dict.fromkeys(SOURCES, 100.0)
     _check_rate(blocks, t)
     alarms = _stuck(blocks, t)
     # After an encoder sticks its axis's residuals, and the wheel end's, say only that it is stuck.
-    blind = {AXES.index(a.axis): a.time_s for a in alarms}
+    blind: dict[int, float] = {}
+    for a in [*earlier, *alarms]:
+        if a.kind == "stuck_encoder":
+            blind[AXES.index(a.axis)] = min(blind.get(AXES.index(a.axis), math.inf), a.time_s)
     ratios, found, sums = [], [], []
     for i, h in enumerate(HYPOTHESES):
         sums.append(_sums(*_whitened(blocks, t, h), 3 if h.axis < 0 else 1))
@@ -344,8 +350,9 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
         known[:] = found
     ratios = np.array(ratios)  # (hypotheses, blocks)
     stats = np.array([g for g, _, _ in found])
-    raised_at = -math.inf  # s: the last alarm's time; a change that began before it is the fault it named
-    raised: set[str] = set()  # each class and axis is raised once
+    # s: the last alarm's time; a change that began before it is the fault it named
+    raised_at = max((a.time_s for a in earlier), default=-math.inf)
+    raised = {f"{a.kind}:{a.axis.replace(' ', '_')}" for a in earlier}  # each class and axis is raised once
     last = len(blocks.start) - 1
     for k in np.flatnonzero(ratios.max(axis=0) > 1):
         k = _isolated_at(int(k), last, complete)
@@ -362,7 +369,8 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *,
     health = {}
     for j, source in enumerate(SOURCES):
         worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
-        health[source] = 0.0 if any(a.axis == source for a in alarms) else 100.0 * max(0.0, 1.0 - float(worst))
+        named = any(a.axis == source for a in [*earlier, *alarms])
+        health[source] = 0.0 if named else 100.0 * max(0.0, 1.0 - float(worst))
     return sorted(alarms, key=lambda a: a.time_s), health
 
 

@@ -27,12 +27,13 @@ import numpy as np
 from asyncua import Client, ua
 
 from bwr_twin.errors import BwrError
-from bwr_twin.shadow.detect import SOURCES, Alarm, Thresholds, assess
+from bwr_twin.shadow.detect import ISOLATE, SOURCES, WINDOW, Alarm, Thresholds, assess
 from bwr_twin.shadow.measured import GAP, Air, Measured
 from bwr_twin.shadow.tags import Tags
 from bwr_twin.shadow.twin import Blocks, ShadowTwin
 
 RETRY = 1.0  # s between attempts to reach a lost source
+KEPT_BLOCKS = 20 * WINDOW  # blocks a watching live shadow keeps at least (40 min of 1 s blocks)
 REQUEST_TIMEOUT = 60.0  # s an OPC UA request may take on a busy machine
 PUBLISHING_INTERVAL = 10.0  # ms: how often the subscription's notifications are sent, a control period
 KEEP_ALIVE = 500  # publishing intervals without a notification before the server says it is there (5 s)
@@ -242,11 +243,17 @@ class LiveShadow:
     `air`: the air of the anemometer's wind, when the samples carry it (Tags.wind).
 
     It keeps only the samples a block still needs: those from the newest block's end on, and
-    the two before, whose steps a gap is told by (a day at 100 Hz would otherwise hold 4.8 GB)."""
+    the two before, whose steps a gap is told by (a day at 100 Hz would otherwise hold 4.8 GB).
+    Watching (thresholds set), it keeps the newest `kept_blocks` to 2 `kept_blocks` blocks: at
+    twice, the older half goes, and the detectors start again on the rest, knowing the alarms
+    raised (bwr_twin.shadow.detect.assess's `earlier`). Without thresholds it keeps every block."""
 
     def __init__(self, twin: ShadowTwin, thresholds: Thresholds | None, say: Callable[[dict], None],
-                 air: Air | None = None):
+                 air: Air | None = None, kept_blocks: int = KEPT_BLOCKS):
+        if kept_blocks <= WINDOW + ISOLATE:
+            raise ValueError(f"kept_blocks must exceed a GLR window and the isolation, {WINDOW + ISOLATE}")
         self._twin, self.thresholds, self._say, self._air = twin, thresholds, say, air
+        self._kept_blocks = kept_blocks
         self._samples: list[Sample] = []
         self._done = 0  # the first sample of the block not yet handed to the twin
         self.counts = np.full(3, np.inf)  # m, rad: each encoder's smallest step seen (as encoder_counts)
@@ -309,6 +316,10 @@ class LiveShadow:
         if not len(blocks.start):
             return False
         self._blocks.append(blocks)
+        if self.thresholds is not None and sum(len(b.start) for b in self._blocks) >= 2 * self._kept_blocks:
+            kept = self.blocks()
+            self._blocks = [Blocks(*(getattr(kept, f)[-self._kept_blocks:] for f in Blocks.__dataclass_fields__))]
+            self._statistics = []  # the detectors' running sums start again on the blocks kept
         self._done += int(np.searchsorted(tail.time, blocks.end[-1]))
         kept = max(self._done - 2, 0)
         del samples[:kept]
@@ -322,7 +333,8 @@ class LiveShadow:
             return
         if self._statistics_for is not self.thresholds:  # thresholds set or changed: start afresh
             self._statistics, self._statistics_for = [], self.thresholds
-        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics, complete=False)
+        alarms, self.health = assess(self.blocks(), self.thresholds, self._statistics, complete=False,
+                                     earlier=self.alarms)
         known = {(a.kind, a.axis) for a in self.alarms}
         for alarm in alarms:
             if (alarm.kind, alarm.axis) not in known:
@@ -342,7 +354,9 @@ class LiveShadow:
         return self._samples[0].position.copy()
 
     def blocks(self) -> Blocks:
-        """Every block so far."""
+        """Every block kept (every block so far, without thresholds)."""
+        if not self._blocks:
+            return Blocks.none()
         return Blocks(*(np.concatenate([getattr(b, f) for b in self._blocks]) for f in Blocks.__dataclass_fields__))
 
 

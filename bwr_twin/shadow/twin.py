@@ -90,6 +90,13 @@ class Blocks:
     samples: np.ndarray
     wind: np.ndarray | None = None
 
+    @classmethod
+    def none(cls) -> Blocks:
+        """No blocks."""
+        empty = np.zeros((0, 3))
+        return cls(np.zeros(0), np.zeros(0), empty, empty, empty, empty, empty, empty, empty, empty, empty, empty,
+                   np.zeros((0, 3, 2)), np.zeros(0, dtype=int), empty)
+
 
 class ShadowTwin:
     """The machine of an MJCF as the shadow runs it: forward under measured forces, and inverse."""
@@ -123,9 +130,7 @@ class ShadowTwin:
         bounds = _whole_blocks(measured.time, measured.period, per_block)
         rows = [self._block(measured, i0, i0 + per_block) for i0 in bounds]
         if not rows:
-            empty = np.zeros((0, 3))
-            return Blocks(np.zeros(0), np.zeros(0), empty, empty, empty, empty, empty, empty, empty, empty, empty,
-                          empty, np.zeros((0, 3, 2)), np.zeros(0, dtype=int), empty)
+            return Blocks.none()
         columns = list(zip(*rows))
         return Blocks(*(np.array(c) for c in columns))
 
