@@ -8,10 +8,7 @@ by the residual's noise, learned per axis from a fault-free log. Its largest val
 onsets is the hypothesis's statistic, the onset and size that give it the alarm's onset and
 size. The size a fault seems to have on the fault-free log is taken off first: a drive's force
 follows the disturbances its controller fights, so a fault-free machine looks a few per cent
-derated. A derate is looked for only in the blocks where the force the twin needs to move the
-axis as measured stands PUSHES times the force residual's noise clear of zero: elsewhere (a
-travel or a slew standing still) the drive answers only forces the twin does not know, and its
-force says nothing of what it delivers. A fault is detected when any statistic exceeds its
+derated. A fault is detected when any statistic exceeds its
 threshold; ISOLATE blocks later it is isolated to the hypothesis whose statistic is then the
 largest (the most likely: the fault that best explains what the residuals did). Each class and
 axis is raised once, and a change that began before the last alarm is the fault that alarm named.
@@ -58,7 +55,6 @@ WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 ONSET_DROP = float(chi2.ppf(0.95, 1))
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
 ISOLATE = 5  # blocks between a fault's detection and its isolation
-PUSHES = 3.0  # the needed force, in the force residual's noise, of a block a derate shows in
 RATE_TOLERANCE = 1.25  # the watched samples' period may be this much shorter or longer than the learned one
 STUCK_FLOOR = 0.1  # of an encoder count: the least margin beyond its count an unchanged reading allows
 # The classes, what each means for maintenance (docs/shadow.md), and which way its size goes.
@@ -208,11 +204,8 @@ def _raw(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.
     r = (blocks.force - mean) / sigma
     s = {"friction_rise": blocks.friction, "drive_derate": blocks.derate, "mass_change": blocks.mass}[h.kind] / sigma
     biased = s
-    if h.kind == "drive_derate":
-        if blocks.wind is not None:
-            biased = (blocks.derate - blocks.wind) / sigma  # -(drive force + wind force)
-        pushes = np.abs(blocks.force - blocks.derate) > PUSHES * sigma  # the force needed: residual + drive's
-        s, biased = s * pushes, biased * pushes
+    if h.kind == "drive_derate" and blocks.wind is not None:
+        biased = (blocks.derate - blocks.wind) / sigma  # -(drive force + wind force)
     if h.axis >= 0:
         return r[:, h.axis], s[:, h.axis], biased[:, h.axis]
     return r.ravel(), s.ravel(), biased.ravel()  # every axis: (blocks x 3,), summed by block below
