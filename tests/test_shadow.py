@@ -313,6 +313,35 @@ def test_the_live_detectors_kept_statistics_give_what_a_pass_over_every_block_gi
     assert [(a.kind, a.axis) for a in alarms] == [("friction_rise", "slew")]
 
 
+def test_an_alarm_names_the_faults_its_residuals_cannot_yet_tell_apart_from_it():
+    """While an axis moves steadily its drive's force is its friction, and a drive that delivers
+    less looks like friction that takes more: the alarm names the other beside it. Where the
+    force also accelerates the axis, the two part, and the alarm names one."""
+    from bwr_twin.shadow.detect import assess, learn
+    from bwr_twin.shadow.twin import Blocks
+
+    def blocks(n: int, steady: bool, fault_from: int | None = None) -> Blocks:
+        rng = np.random.default_rng(3)
+        zeros, friction = np.zeros((n, 3)), rng.normal(-1e3, 1e2, (n, 3))
+        derate = 10.0 * friction  # -(the drive's force): at a steady speed, the friction it overcomes
+        if not steady:
+            derate = derate + rng.normal(0.0, 1e4, (n, 3))  # and the accelerations
+        force = rng.normal(0.0, 1e3, (n, 3))
+        if fault_from is not None:
+            force[fault_from:, 1] += 0.8 * friction[fault_from:, 1]  # the slew's friction up 80 %
+        return Blocks(np.arange(n, dtype=float), np.arange(1.0, n + 1), force, zeros, zeros,
+                      rng.normal(0.0, 1e-4, (n, 3)), zeros, zeros, friction, derate,
+                      rng.normal(0.0, 1e2, (n, 3)), zeros, np.zeros((n, 3, 2)), np.full(n, 100))
+
+    counts = np.array([1e-3, 1e-3, 1e-3])
+    for steady, alternatives in ((True, ("slew drive_derate",)), (False, ())):
+        thresholds = learn([blocks(200, steady)], counts, 0.01)
+        alarms, _ = assess(blocks(400, steady, fault_from=250), thresholds)
+        assert [(a.kind, a.axis, a.alternatives) for a in alarms] == [("friction_rise", "slew", alternatives)]
+        told = "(or slew drive_derate: not told apart yet)" in alarms[0].describe()
+        assert told == steady and alarms[0].event()["alternatives"] == alternatives, alarms[0].describe()
+
+
 def test_a_stuck_encoder_is_where_its_reading_no_longer_allows_the_axis_to_be():
     """From its reading's last change the axis stands within one count past the boundary it
     crossed: moved by its speed feedback back across it (on the way, or by a block's end), or on

@@ -53,6 +53,9 @@ WINDOW = 120  # blocks: the longest a fault's onset is looked back for
 # The GLR's drop from its best onset that still leaves an onset possible: chi-squared with one
 # degree of freedom at 95 %, the likelihood set of the change time with the size at its best.
 ONSET_DROP = float(chi2.ppf(0.95, 1))
+# How close another hypothesis's statistic may come to the best one's and still be named beside
+# it: the same 95 % of a chi-squared with one degree of freedom, each with its size at its best.
+ALTERNATIVE_DROP = ONSET_DROP
 MARGIN = 1.5  # a threshold is at least this times the largest statistic of the fault-free log
 ISOLATE = 5  # blocks between a fault's detection and its isolation
 RATE_TOLERANCE = 1.25  # the watched samples' period may be this much shorter or longer than the learned one
@@ -138,7 +141,12 @@ class Alarm:
     Of a fault found by its GLR test, `onset_range_s`: the earliest and the latest onset (s) the
     residuals leave possible at 95 % (ONSET_DROP). While the fault's axis does nothing that shows
     it (a derate while its drive barely pushes), the range spans that time. None for a stuck
-    encoder, which is seen, not estimated."""
+    encoder, which is seen, not estimated.
+
+    `alternatives`: the other faults ("travel drive_derate") that explain the residuals nearly as
+    well when it is raised (ALTERNATIVE_DROP): where two signatures run alike (a drive that
+    delivers less, and friction that takes more, while the axis moves steadily) the data cannot
+    yet tell them apart, and the alarm says so rather than guess."""
 
     kind: str
     axis: str
@@ -149,6 +157,7 @@ class Alarm:
     statistic: float
     threshold: float
     onset_range_s: tuple[float, float] | None = None
+    alternatives: tuple[str, ...] = ()
 
     def estimate(self) -> str:
         """'+35 % since 102.0 s (possibly 98.0 to 104.0 s)': the size and the onset, with the
@@ -160,7 +169,9 @@ class Alarm:
 
     def describe(self) -> str:
         """'slew friction_rise +35 % since 102.0 s (possibly 98.0 to 104.0 s) (raised at 140.0 s): ...'."""
-        return f"{self.axis} {self.kind} {self.estimate()} (raised at {self.time_s:.1f} s): {CLASSES[self.kind]}"
+        alternatives = "".join(f" or {other}" for other in self.alternatives)
+        told = f" (or{alternatives[3:]}: not told apart yet)" if alternatives else ""
+        return f"{self.axis} {self.kind} {self.estimate()}{told} (raised at {self.time_s:.1f} s): {CLASSES[self.kind]}"
 
     def event(self) -> dict:
         return {"event": "alarm", **asdict(self), "meaning": CLASSES[self.kind]}
@@ -358,7 +369,9 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *, complete
         if blocks.start[onset] > raised_at and _name(h) not in raised and blocks.end[k] < after_stuck:
             raised_at = float(blocks.end[k])
             raised.add(_name(h))
-            alarms.append(_alarm(blocks, t, h, sums[best], k, int(onset), float(size), float(g)))
+            alternatives = tuple(_label(other) for i, other in enumerate(HYPOTHESES) if i != best
+                                 and stats[i, k] >= g - ALTERNATIVE_DROP and ratios[i, k] > 1)
+            alarms.append(_alarm(blocks, t, h, sums[best], k, int(onset), float(size), float(g), alternatives))
     health = {}
     for j, source in enumerate(SOURCES):
         worst = max(ratios[i, -1] for i, h in enumerate(HYPOTHESES) if h.axis == (j if j < 3 else -1))
@@ -391,8 +404,13 @@ def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
     return last if complete else None
 
 
+def _label(h: _Hypothesis) -> str:
+    """'travel drive_derate', 'wheel end mass_change': a hypothesis as an alarm names it."""
+    return f"{'wheel end' if h.axis < 0 else AXES[h.axis]} {h.kind}"
+
+
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray, np.ndarray], k: int, onset: int,
-           size: float, g: float) -> Alarm:
+           size: float, g: float, alternatives: tuple[str, ...]) -> Alarm:
     """The alarm of hypothesis h (its `_sums`) raised at block k: its size and onset, and the
     onsets whose statistic at block k is within ONSET_DROP of the best."""
     m, stat, _ = _profile(*sums, k, h.sided)
@@ -404,7 +422,8 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray
     else:
         scale, unit, axis = 100.0, "%", AXES[h.axis]
     return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), size * scale, unit, g,
-                 t.thresholds[_name(h)], (float(blocks.start[possible.min()]), float(blocks.start[possible.max()])))
+                 t.thresholds[_name(h)], (float(blocks.start[possible.min()]), float(blocks.start[possible.max()])),
+                 alternatives)
 
 
 def _stuck(blocks: Blocks, t: Thresholds) -> list[Alarm]:
