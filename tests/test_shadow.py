@@ -281,6 +281,7 @@ def test_the_shadow_serves_its_residuals_health_and_alarms_over_opc_ua(logs, tmp
     (logged,) = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
     assert (alarm["Size"], alarm["OnsetTime"]) == (logged["size"], logged["onset_s"])
     assert [alarm["OnsetEarliest"], alarm["OnsetLatest"]] == list(logged["onset_range_s"])
+    assert alarm["Alternatives"] == "; ".join(logged["alternatives"])
     assert alarm["Retain"] is True and alarm["ConditionClassName"].Text == "Maintenance"
     assert alarm["Message"].Text.startswith("slew friction_rise +")
 

@@ -167,11 +167,14 @@ class Alarm:
             since += f" (possibly {self.onset_range_s[0]:.1f} to {self.onset_range_s[1]:.1f} s)"
         return f"{self.size:+.3g} {self.unit} {since}"
 
+    def undecided(self) -> str:
+        """' (or slew drive_derate: not told apart yet)', or '' where the alarm has no alternative."""
+        return f" (or {' or '.join(self.alternatives)}: not told apart yet)" if self.alternatives else ""
+
     def describe(self) -> str:
         """'slew friction_rise +35 % since 102.0 s (possibly 98.0 to 104.0 s) (raised at 140.0 s): ...'."""
-        alternatives = "".join(f" or {other}" for other in self.alternatives)
-        told = f" (or{alternatives[3:]}: not told apart yet)" if alternatives else ""
-        return f"{self.axis} {self.kind} {self.estimate()}{told} (raised at {self.time_s:.1f} s): {CLASSES[self.kind]}"
+        return (f"{self.axis} {self.kind} {self.estimate()}{self.undecided()} (raised at {self.time_s:.1f} s): "
+                f"{CLASSES[self.kind]}")
 
     def event(self) -> dict:
         return {"event": "alarm", **asdict(self), "meaning": CLASSES[self.kind]}

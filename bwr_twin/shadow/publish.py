@@ -15,7 +15,8 @@ Every Double is an analog item of OPC UA Part 8 with its EngineeringUnits and EU
 Each alarm is a Part 9 condition of FaultAlarmType (an AlarmConditionType with FaultClass,
 Axis, Size, SizeUnit and OnsetTime of its own, and OnsetEarliest and OnsetLatest: the onsets
 the residuals leave possible, s, both OnsetTime for a stuck encoder, which is seen, not
-estimated), one condition per class and axis, of the
+estimated; Alternatives: the faults not told apart from it, "travel drive_derate", joined by
+"; ", empty for most), one condition per class and axis, of the
 Maintenance condition class, its SourceNode the axis's object (WheelEnd's for a mass change),
 its Message the alarm as the console says it. A fault once found stays active while the shadow
 runs (a fault does not heal itself); ConditionRefresh sends the active ones again. Every node is
@@ -55,7 +56,7 @@ SOURCE_NAMES = {"travel": "Travel", "slew": "Slew", "luff": "Luff", "wheel end":
 FAULT_FIELDS = (("FaultClass", ua.VariantType.String), ("Axis", ua.VariantType.String),
                 ("Size", ua.VariantType.Double), ("SizeUnit", ua.VariantType.String),
                 ("OnsetTime", ua.VariantType.Double), ("OnsetEarliest", ua.VariantType.Double),
-                ("OnsetLatest", ua.VariantType.Double))
+                ("OnsetLatest", ua.VariantType.Double), ("Alternatives", ua.VariantType.String))
 
 
 def residual_ranges(limits: np.ndarray, rated_speed: np.ndarray, thresholds: Thresholds) -> dict[str, np.ndarray]:
@@ -152,7 +153,8 @@ class ShadowServer:
             self._raised.add(key)
             earliest, latest = alarm.onset_range_s or (alarm.onset_s, alarm.onset_s)
             fields = {"FaultClass": alarm.kind, "Axis": alarm.axis, "Size": alarm.size, "SizeUnit": alarm.unit,
-                      "OnsetTime": alarm.onset_s, "OnsetEarliest": earliest, "OnsetLatest": latest}
+                      "OnsetTime": alarm.onset_s, "OnsetEarliest": earliest, "OnsetLatest": latest,
+                      "Alternatives": "; ".join(alarm.alternatives)}
             await self._conditions.change(key, True, alarm.describe(), fields)
 
     async def _write(self, variable: str, source: str, value: float) -> None:

@@ -104,8 +104,8 @@ class ShadowView:
         """Show each source's health and every alarm so far."""
         self.health.content = _health_table(health)
         if alarms:
-            self.alarms.content = "\n".join(f"- **{a.axis} {a.kind}** {a.estimate()} (raised at {a.time_s:.1f} s): "
-                                            f"{CLASSES[a.kind]}" for a in alarms)
+            self.alarms.content = "\n".join(f"- **{a.axis} {a.kind}** {a.estimate()}{a.undecided()} "
+                                            f"(raised at {a.time_s:.1f} s): {CLASSES[a.kind]}" for a in alarms)
 
     async def stop(self) -> None:
         with contextlib.redirect_stdout(io.StringIO()):
