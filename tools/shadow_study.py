@@ -34,7 +34,7 @@ from bwr_twin.model.machine import Machine
 from bwr_twin.results.run_files import read_timeseries
 from bwr_twin.results.rundir import write_run
 from bwr_twin.shadow.detect import beyond_readings
-from bwr_twin.shadow.twin import ShadowTwin
+from bwr_twin.shadow.twin import BLOCK, ShadowTwin
 from bwr_twin.shadow.watch import learn_from, watch
 from bwr_twin.sim.lockstep import simulate
 
@@ -120,11 +120,11 @@ def main() -> None:
                   for seed in range(1000, 1000 + max(1, round(args.learn_hours * 3600 / LOG_S)))]
     thresholds = learn_from(twin, learned_on, 0.01, ignore_wind=args.ignore_wind)
 
-    print("| class | seeds | median delay (s) | target | isolated (or beside) | sizes estimated |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print("| class | seeds | median delay (s) | target | isolated (or beside) | onset within its range | sizes estimated |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     observable = []  # s from when the stuck encoder's axis first stood in another count to its alarm
     for label, (table, kind, axis, target) in classes().items():
-        delays, right, beside, sizes = [], 0, 0, []
+        delays, right, beside, within, sizes = [], 0, 0, 0, []
         for seed in range(1, args.seeds + 1):
             onset = float(round(np.random.default_rng(seed).uniform(60.0, 240.0)))
             folder = run(args.out, f"{kind}-{seed}", seed, f"[[faults]]\n{table}\nstart = {onset}")
@@ -136,11 +136,14 @@ def main() -> None:
                     observable.append(alarms[0].time_s - seen_from(folder, onset, thresholds))
                 right += (alarms[0].kind, alarms[0].axis) == (kind, axis)
                 beside += f"{axis} {kind}" in alarms[0].alternatives
+                earliest, latest = alarms[0].onset_range_s or (alarms[0].onset_s, alarms[0].onset_s)
+                within += earliest - BLOCK <= onset <= latest + BLOCK  # to the block
                 sizes.append(f"{alarms[0].size:.3g} {alarms[0].unit}")
         median = f"{statistics.median(delays):.0f}" if delays else "none"
         missed = args.seeds - len(delays)
         print(f"| {label} | {args.seeds} | {median}{f' ({missed} missed)' if missed else ''} | <= {target:g} | "
-              f"{100 * right / args.seeds:.0f} % ({100 * (right + beside) / args.seeds:.0f} %) | {', '.join(sizes[:3])} |")
+              f"{100 * right / args.seeds:.0f} % ({100 * (right + beside) / args.seeds:.0f} %) | "
+              f"{within} of {len(delays)} | {', '.join(sizes[:3])} |")
 
     if observable:
         print("\nstuck encoder, from when the slew first stood in another count than its reading: "
