@@ -186,6 +186,11 @@ class _Hypothesis:
     axis: int  # -1: every axis (a mass change)
     sided: bool  # True: only a positive size is this fault
 
+    @property
+    def source(self) -> str:
+        """What its alarm names: the axis, or the wheel end (SOURCES)."""
+        return SOURCES[self.axis]
+
 
 HYPOTHESES = tuple([_Hypothesis(kind, j, sided) for j in range(3)
                     for kind, sided in (("friction_rise", True), ("drive_derate", True), ("encoder_drift", False))]
@@ -193,7 +198,7 @@ HYPOTHESES = tuple([_Hypothesis(kind, j, sided) for j in range(3)
 
 
 def _name(h: _Hypothesis) -> str:
-    return f"{h.kind}:{'wheel_end' if h.axis < 0 else AXES[h.axis]}"
+    return f"{h.kind}:{h.source.replace(' ', '_')}"
 
 
 def _whitened(blocks: Blocks, t: Thresholds, h: _Hypothesis) -> tuple[np.ndarray, np.ndarray]:
@@ -372,7 +377,7 @@ def assess(blocks: Blocks, t: Thresholds, known: list | None = None, *, complete
         if blocks.start[onset] > raised_at and _name(h) not in raised and blocks.end[k] < after_stuck:
             raised_at = float(blocks.end[k])
             raised.add(_name(h))
-            alternatives = tuple(_label(other) for i, other in enumerate(HYPOTHESES) if i != best
+            alternatives = tuple(f"{other.source} {other.kind}" for i, other in enumerate(HYPOTHESES) if i != best
                                  and stats[i, k] >= g - ALTERNATIVE_DROP and ratios[i, k] > 1)
             alarms.append(_alarm(blocks, t, h, sums[best], k, int(onset), float(size), float(g), alternatives))
     health = {}
@@ -407,11 +412,6 @@ def _isolated_at(detected: int, last: int, complete: bool) -> int | None:
     return last if complete else None
 
 
-def _label(h: _Hypothesis) -> str:
-    """'travel drive_derate', 'wheel end mass_change': a hypothesis as an alarm names it."""
-    return f"{'wheel end' if h.axis < 0 else AXES[h.axis]} {h.kind}"
-
-
 def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray, np.ndarray], k: int, onset: int,
            size: float, g: float, alternatives: tuple[str, ...]) -> Alarm:
     """The alarm of hypothesis h (its `_sums`) raised at block k: its size and onset, and the
@@ -419,12 +419,12 @@ def _alarm(blocks: Blocks, t: Thresholds, h: _Hypothesis, sums: tuple[np.ndarray
     m, stat, _ = _profile(*sums, k, h.sided)
     possible = m[stat >= g - ONSET_DROP]
     if h.kind == "mass_change":
-        scale, unit, axis = UNIT_MASS, "kg", "wheel end"
+        scale, unit = UNIT_MASS, "kg"
     elif h.kind == "encoder_drift":
-        scale, unit, axis = (1.0 if h.axis == 0 else math.degrees(1.0)), ("m/s", "deg/s", "deg/s")[h.axis], AXES[h.axis]
+        scale, unit = (1.0 if h.axis == 0 else math.degrees(1.0)), ("m/s", "deg/s", "deg/s")[h.axis]
     else:
-        scale, unit, axis = 100.0, "%", AXES[h.axis]
-    return Alarm(h.kind, axis, float(blocks.end[k]), float(blocks.start[onset]), size * scale, unit, g,
+        scale, unit = 100.0, "%"
+    return Alarm(h.kind, h.source, float(blocks.end[k]), float(blocks.start[onset]), size * scale, unit, g,
                  t.thresholds[_name(h)], (float(blocks.start[possible.min()]), float(blocks.start[possible.max()])),
                  alternatives)
 

@@ -113,7 +113,7 @@ class ShadowServer:
         fault_type = await server.create_custom_event_type(ns, "FaultAlarmType", ua.ObjectIds.AlarmConditionType,
                                                            list(FAULT_FIELDS))
         self._conditions = conditions = await Conditions.build(server, shadow)
-        kinds = [(h.kind, "wheel end" if h.axis < 0 else AXES[h.axis]) for h in HYPOTHESES]
+        kinds = [(h.kind, h.source) for h in HYPOTHESES]
         kinds += [("stuck_encoder", axis) for axis in AXES]
         for index, (kind, source) in enumerate(kinds):
             condition = f"Shadow.{SOURCE_NAMES[source]}.{kind}"
