@@ -59,15 +59,14 @@ class PileClearance:
         """Period k: the shapes where the true joints q (runs, 3) put them, moving at qd, against
         the piles' heights (runs, ny, nx) as dug until now; only the `runs` given (None: all)."""
         order = self._all if runs is None else runs
-        if runs is None:
-            self.periods += 1
-        else:
-            self.periods[runs] += 1
+        # Most periods no run has moved far enough to be measured: a call of few arguments says so.
+        if not _carried(order, qd, self.levers, self.period, WATCH, RECHECK, NEAR, self.periods, self._moved,
+                        self._measured, self.now):
+            return
         m, contacts, time = self._mounted, self._contacts, round(k * self.period, 9)
-        if not _clearances(heights, *self._grid, order, q, qd, self.period, self.levers,
-                           m.kinds, m.halves, m.positions, m.rotations, m.joints, m.anchor,
-                           m.axis, WATCH, RECHECK, NEAR, time, self._moved, self._measured, self.now, self.checks,
-                           self.least, self.least_time, contacts.open):
+        if not _clearances(heights, *self._grid, order, q, m.kinds, m.halves, m.positions, m.rotations,
+                           m.joints, m.anchor, m.axis, WATCH, RECHECK, NEAR, time, self._moved, self._measured,
+                           self.now, self.checks, self.least, self.least_time, contacts.open):
             return  # no shape measured touches the pile, and no contact is under way
         touching = self._measured <= 0.0
         for run, shape in zip(*np.nonzero(touching | (contacts.open >= 0))):
@@ -123,23 +122,42 @@ def levers_of(shapes: Sequence[CollisionShape]) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _clearances(heights, x0, y0, spacing, runs, q, qd, period, levers, kinds, halves, positions0, rotations0, joints,
-                anchor, axis, watch, recheck, near, time, moved, measured, now, checks, least_measured,
-                least_time, open_contacts):  # pragma: no cover - compiled
-    """Each run's shapes measured if it may have moved far enough (its module's docstring), else
-    their lower bounds; the least measures so far and their `time` (s). Whether a shape measured
-    touches the pile or has a contact open (only a measured run can: one that is not lies
-    farther than `near`)."""
+def _due(moved, measured, watch, recheck, near) -> bool:  # pragma: no cover - compiled
+    """Whether a run that may have `moved` (m) since its shapes' last `measured` (shapes,) is to
+    be measured again (its module's docstring)."""
+    least = watch
+    for i in range(len(measured)):
+        least = min(least, measured[i])
+    return not (moved < recheck * least and least > near)
+
+
+@numba.njit(cache=True)
+def _carried(runs, qd, levers, period, watch, recheck, near, periods, moved, measured, now):  # pragma: no cover - compiled
+    """The period counted and each run's motion added to what it may have moved; the runs not due
+    carry their lower bounds in `now`. Whether any run is due to be measured."""
+    any_due = False
+    for run in runs:
+        periods[run] += 1
+        moved[run] += (abs(qd[run, 0]) * levers[0] + abs(qd[run, 1]) * levers[1] + abs(qd[run, 2]) * levers[2]) * period
+        if _due(moved[run], measured[run], watch, recheck, near):
+            any_due = True
+        else:
+            for i in range(measured.shape[1]):
+                now[run, i] = measured[run, i] - moved[run]
+    return any_due
+
+
+@numba.njit(cache=True)
+def _clearances(heights, x0, y0, spacing, runs, q, kinds, halves, positions0, rotations0, joints, anchor, axis,
+                watch, recheck, near, time, moved, measured, now, checks, least_measured, least_time,
+                open_contacts):  # pragma: no cover - compiled
+    """The shapes of each run `_carried` found due measured, their least measures so far and
+    their `time` (s). Whether a shape measured touches the pile or has a contact open (only a
+    measured run can: one that is not lies farther than `near`)."""
     position, rotation = np.empty(3), np.empty((3, 3))
     contact = False
     for run in runs:
-        moved[run] += (abs(qd[run, 0]) * levers[0] + abs(qd[run, 1]) * levers[1] + abs(qd[run, 2]) * levers[2]) * period
-        least = watch
-        for i in range(len(kinds)):
-            least = min(least, measured[run, i])
-        if moved[run] < recheck * least and least > near:
-            for i in range(len(kinds)):
-                now[run, i] = measured[run, i] - moved[run]
+        if not _due(moved[run], measured[run], watch, recheck, near):
             continue
         for i in range(len(kinds)):
             site_pose(q[run], positions0[i], rotations0[i], joints[i], anchor, axis, position, rotation)

@@ -73,13 +73,15 @@ class Cutter:
         # Per run, where its wheel was when the cells near it were gathered (NaN: never).
         self._near = np.full((runs, _NEAR), np.nan)
         self._all = np.arange(runs)
+        # The period's cut, written in place each period: allocating it anew cost more than the cut.
+        self._out = Cut(np.zeros(runs), np.zeros(runs), np.zeros((runs, 3)), np.zeros(runs),
+                        np.full((runs, 4), -1, dtype=np.int64))
 
     def cut(self, cp: np.ndarray, slew: np.ndarray, runs: np.ndarray | None = None) -> Cut:
         """Lower every run's pile to its wheel's envelope, the wheel centred at cp (runs, 3) with
-        the boom at `slew` (runs,) rad; only the `runs` given (None: all)."""
-        count = len(self.heights)
-        out = Cut(np.zeros(count), np.zeros(count), np.zeros((count, 3)), np.zeros(count),
-                  np.full((count, 4), -1, dtype=np.int64))
+        the boom at `slew` (runs,) rad; only the `runs` given (None: all). The Cut is this
+        Cutter's own, written again by its next cut."""
+        out = self._out
         order = self._all if runs is None else np.asarray(runs, dtype=np.int64)
         _cut(self.heights, self._x, self._y, np.ascontiguousarray(cp, dtype=float),
              np.ascontiguousarray(slew, dtype=float), order, self._near, self._shape,
@@ -107,7 +109,9 @@ _NEAR = 6
 @numba.njit(cache=True, error_model="numpy")
 def _cut(heights, xs, ys, cp, slews, order, near, shape, volume, depth, centroid, side, lowered):
     """Cutter.cut for the runs in `order`: lowers `heights` and writes the cut's outputs, and in
-    `lowered` (runs, 4) the rectangle of the cells it lowered."""
+    `lowered` (runs, 4) the rectangle of the cells it lowered; every run's outputs are first
+    cleared (zero, and -1 for `lowered`)."""
+    volume[:], depth[:], centroid[:], side[:], lowered[:] = 0.0, 0.0, 0.0, 0.0, -1
     radius, radius2, half_width, side_slope, top, margin = shape[0], shape[1], shape[2], shape[3], shape[4], shape[5]
     x0, y0, h, cell_area, floor = shape[6], shape[7], shape[8], shape[9], shape[10]
     ny, nx = heights.shape[1], heights.shape[2]
