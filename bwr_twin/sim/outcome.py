@@ -27,25 +27,25 @@ class PlanOutcome:
         self.plan, self.target, self.period = plan, target, period  # target t/h
         # The belt carries a cut a bucket interval later, and holds it one more.
         self._settle = int(np.ceil(2 * bucket_interval / period))
-        self._steady_for = np.zeros(runs, dtype=np.int64)  # periods in steady cutting so far
-        self.steady_periods = np.zeros(runs, dtype=np.int64)
-        self.steady_sum, self.steady_square_sum = np.zeros(runs), np.zeros(runs)
-        self.steady_within = np.zeros(runs, dtype=np.int64)
+        # The counts and measures each period adds to, two arrays for one compiled call a period;
+        # the attributes are views of their rows.
+        self._counts = np.zeros((4, runs), dtype=np.int64)
+        self._measures = np.zeros((5, runs))
+        self._measures[2] = np.nan
+        # periods in steady cutting in a row; periods counted steady, and of these within the band; the bench
+        self._steady_for, self.steady_periods, self.steady_within, self._bench = self._counts
+        # t/h summed and squared over the steady periods; s of the first cut; m and s of the largest over-cut
+        self.steady_sum, self.steady_square_sum, self.contact_time, self.overcut_max, self.overcut_time = self._measures
         self.contact = np.full((runs, 3), np.nan)  # world m: the CP when the wheel first cut
-        self.contact_time = np.full(runs, np.nan)
-        self.overcut_max, self.overcut_time = np.zeros(runs), np.zeros(runs)  # m, s
         self.bench_carried = np.zeros((runs, plan.benches))  # m^3
-        self._bench = np.zeros(runs, dtype=np.int64)
 
     def add(self, k: int, phase: Phase, reclaim) -> None:
         """Period k, in which the runs stood at `phase` and their reclaim (bwr_twin.stockpile.
         reclaim.Reclaim) cut, carried and discharged what it did."""
         cut = reclaim.cut
         _add(k * self.period, self._settle, phase.bench, phase.steady, phase.planned_depth, cut.volume, cut.depth,
-             reclaim.cp, reclaim.rate, self.target, self._steady_for, self.steady_periods, self.steady_sum,
-             self.steady_square_sum, self.steady_within, self.contact, self.contact_time, self.overcut_max,
-             self.overcut_time, self._bench)
-        self.discharged(reclaim.conveyor.discharged)
+             reclaim.cp, reclaim.rate, self.target, self._counts, self._measures, self.contact,
+             reclaim.conveyor.discharged, self.bench_carried)
 
     def discharged(self, volume: np.ndarray) -> None:
         """The buckets discharged `volume` (runs,) m^3 onto the belt in the current bench."""
@@ -76,11 +76,15 @@ class PlanOutcome:
 
 
 @numba.njit(cache=True)
-def _add(time, settle, bench, steady, planned_depth, volume, depth, cp, rate, target, steady_for, steady_periods,
-         steady_sum, steady_square_sum, steady_within, contact, contact_time, overcut_max, overcut_time,
-         run_bench):  # pragma: no cover - compiled
-    """One period's measures for every run."""
+def _add(time, settle, bench, steady, planned_depth, volume, depth, cp, rate, target, counts, measures, contact,
+         discharged, bench_carried):  # pragma: no cover - compiled
+    """One period's measures for every run (PlanOutcome's counts and measures by row), and what
+    its buckets `discharged` (runs,) m^3 carried to its bench."""
+    steady_for, steady_periods, steady_within, run_bench = counts[0], counts[1], counts[2], counts[3]
+    steady_sum, steady_square_sum, contact_time, overcut_max, overcut_time = (
+        measures[0], measures[1], measures[2], measures[3], measures[4])
     run_bench[:] = bench
+    _discharged(discharged, run_bench, bench_carried)
     if not (volume > 0).any():
         steady_for[:] = 0
         return

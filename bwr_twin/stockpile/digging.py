@@ -37,11 +37,10 @@ class DiggingLoad:
         [digging], which then has no load)."""
         runs = len(cutting_energy)
         wheel, g = machine.wheel, machine.geometry
-        self._constants = (float(period), float(period / (bucket_interval + period)), float(wheel.power),
-                           float(wheel.rim_speed), float(g.slew_axis_xy[0]), float(g.slew_axis_xy[1]),
-                           float(g.pivot_reach), float(g.pivot_height))
-        self._per_run = (np.asarray(cutting_energy, float), np.asarray(idle_power, float),
-                         np.asarray(lateral_ratio, float))
+        # The machine's and each run's numbers as two arrays: a compiled call a period costs by its arguments.
+        self._constants = np.array([period, period / (bucket_interval + period), wheel.power, wheel.rim_speed,
+                                    g.slew_axis_xy[0], g.slew_axis_xy[1], g.pivot_reach, g.pivot_height], dtype=float)
+        self._per_run = np.array([cutting_energy, idle_power, lateral_ratio], dtype=float).reshape(3, runs)
         self._dug_rate = np.zeros(runs)  # m^3/s, lagged by a bucket interval
         self._arm = np.zeros((runs, 2))  # the last cut's centre from the CP: along the boom, up (m)
         self._side = np.zeros(runs)  # and the side of the wheel's plane it lay on
@@ -53,17 +52,21 @@ class DiggingLoad:
     def step(self, q: np.ndarray, cp: np.ndarray, cut) -> np.ndarray | None:
         """The load of a period whose cut (bwr_twin.pile.cutting.Cut) the wheels at joint
         values q and CPs cp (runs, 3) made: `joint_force`, or None when no wheel digs."""
-        loaded = _load(q, cp, cut.volume, cut.centroid, cut.side, *self._per_run, *self._constants,
-                       self._dug_rate, self._arm, self._side, self.power, self.force, self.force_max,
-                       self.joint_force)
+        loaded = _load(q, cp, cut.volume, cut.centroid, cut.side, self._per_run, self._constants, self._dug_rate,
+                       self._arm, self._side, self.power, self.force, self.force_max, self.joint_force)
         return self.joint_force if loaded else None
 
 
 @numba.njit(cache=True)
-def _load(q, cp, volume, centroid, side, cutting_energy, idle_power, lateral_ratio, period, lag, wheel_power,
-          rim_speed, slew_x, slew_y, pivot_reach, pivot_height, dug_rate, arm, last_side, power, force,
-          force_max, joint_force):  # pragma: no cover - compiled
-    """One period's load for every run; False (and no force) when no wheel digs at all."""
+def _load(q, cp, volume, centroid, side, per_run, constants, dug_rate, arm, last_side, power, force, force_max,
+          joint_force):  # pragma: no cover - compiled
+    """One period's load for every run; False (and no force) when no wheel digs at all. `per_run`:
+    (3, runs) each run's cutting energy, idle power and lateral ratio; `constants`: the period,
+    the bucket lag's share, the wheel's power and rim speed, the slew axis's x and y, the luff
+    pivot's reach and height."""
+    cutting_energy, idle_power, lateral_ratio = per_run[0], per_run[1], per_run[2]
+    period, lag, wheel_power, rim_speed = constants[0], constants[1], constants[2], constants[3]
+    slew_x, slew_y, pivot_reach, pivot_height = constants[4], constants[5], constants[6], constants[7]
     runs = len(volume)
     digging = False
     for r in range(runs):
