@@ -132,7 +132,8 @@ def _due(moved, measured, watch, recheck, near) -> bool:  # pragma: no cover - c
 
 
 @numba.njit(cache=True)
-def _carried(runs, qd, levers, period, watch, recheck, near, periods, moved, measured, now):  # pragma: no cover - compiled
+def _carried(runs, qd, levers, period, watch, recheck, near,
+             periods, moved, measured, now):  # pragma: no cover - compiled
     """The period counted and each run's motion added to what it may have moved; the runs not due
     carry their lower bounds in `now`. Whether any run is due to be measured."""
     any_due = False

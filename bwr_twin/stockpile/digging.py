@@ -40,7 +40,7 @@ class DiggingLoad:
         # The machine's and each run's numbers as two arrays: a compiled call a period costs by its arguments.
         self._constants = np.array([period, period / (bucket_interval + period), wheel.power, wheel.rim_speed,
                                     g.slew_axis_xy[0], g.slew_axis_xy[1], g.pivot_reach, g.pivot_height], dtype=float)
-        self._per_run = np.array([cutting_energy, idle_power, lateral_ratio], dtype=float).reshape(3, runs)
+        self._per_run = np.array([cutting_energy, idle_power, lateral_ratio], dtype=float)  # (3, runs)
         self._dug_rate = np.zeros(runs)  # m^3/s, lagged by a bucket interval
         self._arm = np.zeros((runs, 2))  # the last cut's centre from the CP: along the boom, up (m)
         self._side = np.zeros(runs)  # and the side of the wheel's plane it lay on
