@@ -1,6 +1,7 @@
 """Where the fit's residual is least along one parameter, every other at its truth, and what moves
 it there: the residual RMS per compared column with one parameter scaled, on a log of the study's
-first variant (tools/calibration_study.py, `--seed`) with each noise source on or off.
+first variant (tools/calibration_study.py, `--seed`) with each noise source on or off; then the
+balance of forces' own estimate of every axis's damping, friction and drive inertia.
 
     python tools/calibration_profile.py [--param luff_armature] [--torque-noise 0.01]
         [--disturbance 1] [--still-air] [--window 5] [--seed 1]
@@ -20,8 +21,9 @@ from pathlib import Path
 import numpy as np
 from calibration_study import HEAVY, PARAMS, PLANT, imperfect, log_of, variant
 
+from bwr_twin.calibrate.balance import Balance
 from bwr_twin.calibrate.fit import Problem
-from bwr_twin.calibrate.parameters import catalogue
+from bwr_twin.calibrate.parameters import JOINT_KINDS, catalogue
 from bwr_twin.calibrate.plan import TORQUE_NOISE, scene_text
 from bwr_twin.model.machine import Machine
 
@@ -70,6 +72,30 @@ def main() -> None:
     moves = rows.max(axis=0) - rows.min(axis=0) > 1e-3 * rows.min(axis=0)
     least = [f"{FACTORS[i]:14.2f}" if m else f"{'-':>14s}" for i, m in zip(rows.argmin(axis=0), moves, strict=True)]
     print("least at " + " ".join(least) + "  x truth")
+    print_balance(problem, params, knobs, truth)
+
+
+def print_balance(problem, params, knobs, truth) -> None:
+    """The balance of forces' own least squares for every axis's damping, friction and drive
+    inertia (the counterweight at its truth), against the truth: an equation-error fit, which
+    takes the logged force as the noisy side and so sees what the log itself holds."""
+    joint = [k for k in knobs if k.kind in JOINT_KINDS]
+    start = params.copy()
+    for knob in joint:
+        start[knob.name].value[:] = knob.nominal
+    balance = Balance(problem)
+    needed = balance.needed(start)
+    residual = balance.force - needed
+    spread = np.array([np.std(residual[balance.moving[:, j], j]) for j in range(3)])
+    weight = balance.moving / spread  # each axis's moving rows, in units of its force's spread
+    columns = (balance.columns(start, joint, needed) * weight[..., None]).reshape(-1, len(joint))
+    scale = np.array([k.high - k.low for k in joint])
+    delta = np.linalg.lstsq(columns * scale, (residual * weight).ravel(), rcond=None)[0] * scale
+    print("the balance of forces' least squares (every moving interval):")
+    for knob, change in zip(joint, delta, strict=True):
+        value = knob.nominal + change
+        print(f"  {knob.name:20s} truth {truth[knob.name]:11.4g} {knob.unit:10s} balance {value:11.4g} "
+              f"({100 * (value / truth[knob.name] - 1):+.1f} %)")
 
 
 if __name__ == "__main__":
