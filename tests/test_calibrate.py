@@ -106,6 +106,25 @@ def test_coulomb_friction_is_recovered_and_written_into_the_mjcf(tmp_path):
     assert (twin_log(tmp_path / "again", out / "calibrated.xml", TRAVEL_ONLY) / "timeseries.csv").is_file()
 
 
+def test_the_replayed_force_keeps_each_logged_mean_and_a_fast_swing():
+    """A drive force swinging at 1 Hz, logged at 10 Hz (with jitter) as each period's mean: the
+    reconstruction's mean over every period is the logged one, and its swing is the force's,
+    where straight lines between the means lose 5 % of it."""
+    from bwr_twin.calibrate.log import MachineLog
+
+    rng = np.random.default_rng(3)
+    time = np.arange(200) * 0.1 + rng.uniform(-0.01, 0.01, 200)
+    bounds = np.r_[1.5 * time[0] - 0.5 * time[1], 0.5 * (time[1:] + time[:-1]), 1.5 * time[-1] - 0.5 * time[-2]]
+    w = 2 * np.pi  # rad/s: 1 Hz
+    means = (np.cos(w * bounds[:-1]) - np.cos(w * bounds[1:])) / (w * np.diff(bounds))  # of sin(w t)
+    log = MachineLog(path=Path("swing"), time=time, q=np.zeros((200, 3)), force=np.repeat(means[:, None], 3, axis=1))
+    impulse = log.impulse(0, 199)
+    assert np.allclose(np.diff(impulse(bounds), axis=0)[:, 0] / np.diff(bounds), means, atol=1e-9)
+    inner = np.linspace(2.0, 18.0, 4001)
+    assert np.abs(impulse(inner, 1)[:, 0] - np.sin(w * inner)).max() < 0.01
+    assert np.abs(np.interp(inner, time, means) - np.sin(w * inner)).max() > 0.04
+
+
 def test_reflected_drive_inertia_is_recovered(tmp_path):
     mjcf = variant(tmp_path, [("joint", "travel", "armature", 0, "4.0e5", "a third of the carriage"),
                               ("joint", "slew", "armature", 0, "2.5e8", "a third of the slewing part")])

@@ -120,16 +120,21 @@ class Balance:
 
 def _intervals(log, wind) -> tuple[np.ndarray, ...]:
     """Per log interval (within a stretch without a gap): the mid-point joint values and speeds,
-    the mean acceleration, the mean force on the axes (the drive's: the logged forces are each
-    sample's mean, so the interval's is the two ends' mean; and the wind's, `wind` (n, 3) per
-    row, or None), and the mid-point time."""
+    the mean acceleration, the mean force on the axes (the drive's, from its running integral,
+    `MachineLog.impulse`; and the wind's, `wind` (n, 3) per row, or None), and the mid-point
+    time."""
     dt = np.diff(log.time)
     keep = dt <= GAP_FACTOR * np.median(dt)
     speed = log.qd if log.qd is not None else np.array([log.velocity_at(i) for i in range(len(log.time))])
     q = 0.5 * (log.q[1:] + log.q[:-1])
     qd = 0.5 * (speed[1:] + speed[:-1])
     qdd = np.diff(speed, axis=0) / dt[:, None]
-    force = 0.5 * (log.force[1:] + log.force[:-1])
+    force = np.zeros_like(q)  # each interval's mean, from the running integral of each stretch without a gap
+    gaps = np.flatnonzero(~keep) + 1
+    for first, stop in zip(np.r_[0, gaps], np.r_[gaps, len(log.time)], strict=True):
+        if stop - first > 1:
+            running = log.impulse(first, stop - 1)(log.time[first:stop])
+            force[first:stop - 1] = np.diff(running, axis=0) / dt[first:stop - 1, None]
     if wind is not None:
         force = force + 0.5 * (wind[1:] + wind[:-1])
     middle = 0.5 * (log.time[1:] + log.time[:-1])

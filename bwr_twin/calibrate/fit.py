@@ -101,8 +101,9 @@ class Problem:
 
     def _sequences(self) -> sysid.ModelSequences:
         """One sequence a window, every window alike: the drive forces on the model's timestep
-        grid, the measured signals on the log's median step (interpolated within the window, so
-        that jitter does not change a window's shape and all roll out in one batch)."""
+        grid (each step's mean, `MachineLog.impulse`), the measured signals on the log's median
+        step (interpolated within the window, so that jitter does not change a window's shape and
+        all roll out in one batch)."""
         model = self.model
         actuators = list(self.machine.actuator_ids)
         gear = self.machine.model.actuator_gear[actuators, 0]
@@ -120,9 +121,11 @@ class Problem:
             for first, last in cut(log, self.window):
                 t0 = log.time[first]
                 rows = slice(first, last + 1)
+                # Each physics step holds the drive force's mean over it (the last control drives nothing).
+                running = log.impulse(first, last)(t0 + control_grid)
                 ctrl = np.zeros((steps + 1, model.nu))
-                for j, a in enumerate(actuators):
-                    ctrl[:, a] = np.interp(t0 + control_grid, log.time[rows], log.force[rows, j]) / gear[j]
+                ctrl[:-1, actuators] = np.diff(running, axis=0) / dt / gear
+                ctrl[-1] = ctrl[-2]
                 measured = log.q[rows] if not self.velocity else np.hstack([log.q[rows], log.qd[rows]])
                 sampled = np.column_stack([np.interp(t0 + sample_grid, log.time[rows], measured[:, c])
                                            for c in range(measured.shape[1])])

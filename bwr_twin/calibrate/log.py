@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from bwr_twin.errors import BwrError
 from bwr_twin.model.machine import AXES
@@ -35,6 +36,18 @@ class MachineLog:
     def rate(self) -> float:
         """The median sample rate in Hz."""
         return float(1.0 / np.median(np.diff(self.time)))
+
+    def impulse(self, first: int, last: int) -> CubicSpline:
+        """The drive forces' running integral (N s, N m s) over rows `first` to `last` (within a
+        stretch without a gap): a cubic spline through it at the bounds of the sample periods.
+        Each logged force is its period's mean, stamped at the period's middle, so the spline's
+        slope is a force whose mean over every period is the logged one. Straight lines between
+        the means would average each change over two periods more: at 10 Hz a 1 Hz swing of the
+        force comes out 5 % smaller, and the fit puts a drive inertia that much low."""
+        t = self.time[first:last + 1]
+        bounds = np.r_[1.5 * t[0] - 0.5 * t[1], 0.5 * (t[1:] + t[:-1]), 1.5 * t[-1] - 0.5 * t[-2]]
+        impulses = self.force[first:last + 1] * np.diff(bounds)[:, None]
+        return CubicSpline(bounds, np.vstack([np.zeros((1, 3)), np.cumsum(impulses, axis=0)]), axis=0)
 
     def velocity_at(self, row: int) -> np.ndarray:
         """The (3,) speed at `row`: the speed feedback, or where there is none the slope of a
