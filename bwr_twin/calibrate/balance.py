@@ -23,7 +23,7 @@ import numpy as np
 from mujoco import sysid
 
 from bwr_twin.calibrate.parameters import BODY_KINDS, JOINT_KINDS
-from bwr_twin.calibrate.windows import GAP_FACTOR
+from bwr_twin.calibrate.windows import stretches
 
 STICK = 0.05  # of the rated speed: slower, the Coulomb friction is anywhere within its band
 PROBE = 0.1  # of a parameter's range: the change its column is taken over (the balance is linear in most)
@@ -124,14 +124,14 @@ def _intervals(log, wind) -> tuple[np.ndarray, ...]:
     `MachineLog.impulse`; and the wind's, `wind` (n, 3) per row, or None), and the mid-point
     time."""
     dt = np.diff(log.time)
-    keep = dt <= GAP_FACTOR * np.median(dt)
+    keep = np.zeros(len(dt), dtype=bool)  # the intervals within a stretch, not across a gap
     speed = log.qd if log.qd is not None else np.array([log.velocity_at(i) for i in range(len(log.time))])
     q = 0.5 * (log.q[1:] + log.q[:-1])
     qd = 0.5 * (speed[1:] + speed[:-1])
     qdd = np.diff(speed, axis=0) / dt[:, None]
     force = np.zeros_like(q)  # each interval's mean, from the running integral of each stretch without a gap
-    gaps = np.flatnonzero(~keep) + 1
-    for first, stop in zip(np.r_[0, gaps], np.r_[gaps, len(log.time)], strict=True):
+    for first, stop in stretches(log):
+        keep[first:stop - 1] = True
         if stop - first > 1:
             running = log.impulse(first, stop - 1)(log.time[first:stop])
             force[first:stop - 1] = np.diff(running, axis=0) / dt[first:stop - 1, None]

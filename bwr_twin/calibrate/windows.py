@@ -12,6 +12,13 @@ from bwr_twin.errors import BwrError
 GAP_FACTOR = 3.0  # a step longer than this many median steps is a gap (jitter is less)
 
 
+def stretches(log: MachineLog) -> list[tuple[int, int]]:
+    """(first, stop) row indices of each stretch of the log without a gap, stop exclusive."""
+    steps = np.diff(log.time)
+    bounds = np.r_[0, np.flatnonzero(steps > GAP_FACTOR * np.median(steps)) + 1, len(log.time)]
+    return [(int(first), int(stop)) for first, stop in zip(bounds[:-1], bounds[1:], strict=True)]
+
+
 def cut(log: MachineLog, length: float) -> list[tuple[int, int]]:
     """(first, last) row indices of each window: from a sample to the first sample at least
     `length` s later, within a stretch without a gap (what is left at a stretch's end, shorter
@@ -23,10 +30,8 @@ def cut(log: MachineLog, length: float) -> list[tuple[int, int]]:
         row = int(np.argmax(steps)) + 2
         raise BwrError(f"{log.path}: row {row}: a gap of {steps.max():g} s after {log.time[row - 2]:g} s, longer "
                        f"than a window of {length:g} s; cut the log there or give a longer --window")
-    gaps = np.flatnonzero(steps > GAP_FACTOR * np.median(steps)) + 1
     windows = []
-    for first, stop in zip(np.r_[0, gaps], np.r_[gaps, len(log.time)]):
-        start = int(first)
+    for start, stop in stretches(log):
         while True:
             end = int(np.searchsorted(log.time, log.time[start] + length - 1e-9, side="left"))
             if end >= stop:
