@@ -84,13 +84,7 @@ def print_balance(problem, params, knobs, truth) -> None:
     for knob in joint:
         start[knob.name].value[:] = knob.nominal
     balance = Balance(problem)
-    needed = balance.needed(start)
-    residual = balance.force - needed
-    spread = np.array([np.std(residual[balance.moving[:, j], j]) for j in range(3)])
-    weight = balance.moving / spread  # each axis's moving rows, in units of its force's spread
-    columns = (balance.columns(start, joint, needed) * weight[..., None]).reshape(-1, len(joint))
-    scale = np.array([k.high - k.low for k in joint])
-    delta = np.linalg.lstsq(columns * scale, (residual * weight).ravel(), rcond=None)[0] * scale
+    delta = balance.least_squares(start, joint, balance.moving)
     print("the balance of forces' least squares (every moving interval):")
     for knob, change in zip(joint, delta, strict=True):
         value = knob.nominal + change

@@ -82,6 +82,19 @@ class Balance:
             out.append((self.needed(trial) - needed) / step)
         return np.stack(out, axis=-1)
 
+    def least_squares(self, params: sysid.ParameterDict, knobs, rows: np.ndarray) -> np.ndarray:
+        """The knobs' changes from `params` that best balance the forces over `rows` (n, 3), a
+        mask of the equations to take: an equation-error fit. Each axis's equations are weighted
+        by the inverse of its force residual's spread (N and N m alike); an axis with fewer than
+        two equations has none, and what only it sees stays where it is."""
+        needed = self.needed(params)
+        residual = self.force - needed  # what the knobs' changes must explain
+        spread = np.array([np.std(residual[rows[:, j], j]) if rows[:, j].sum() > 1 else np.inf for j in range(3)])
+        weight = rows * np.where(np.isfinite(spread), 1.0 / np.maximum(spread, 1e-300), 0.0)
+        a = (self.columns(params, knobs, needed) * weight[..., None]).reshape(-1, len(knobs))
+        scale = np.array([k.high - k.low for k in knobs])  # the columns of one size
+        return np.linalg.lstsq(a * scale, (residual * weight).reshape(-1), rcond=None)[0] * scale
+
     def floor(self, params: sysid.ParameterDict, knobs, noise: np.ndarray | None = None) -> dict[str, float]:
         """Each model knob's least standard error (by name) at `params`: the Cramer-Rao bound of
         the balance for its axes' force noise `noise` (3,) in N and N m. Where `noise` is not

@@ -33,21 +33,10 @@ def equation_error_start(problem, params: sysid.ParameterDict) -> sysid.Paramete
     if not knobs or not len(balance.q):
         return params
     base = params.copy()
-    needed = balance.needed(base)
-    regressor = balance.columns(base, knobs, needed)  # (n, 3, p)
     # Rows in steady motion: friction's sign is known, and the inertias (a mass, a drive's, held
     # at their start) hardly matter. A 10 Hz log's accelerations, a difference of two speeds
     # against a mean of forces that chatter at the control rate, would not give them anyway.
-    moving = balance.moving & (np.abs(balance.qdd) < STEADY * balance.rated)
-    residual = balance.force - needed  # what the parameters' changes must explain
-    # Each axis's equations weighted by the inverse of its force's spread: N and N m alike.
-    # An axis that never moved steadily has no equations: its parameters stay where they are.
-    spread = np.array([np.std(residual[moving[:, j], j]) if moving[:, j].sum() > 1 else np.inf for j in range(3)])
-    weight = np.where(np.isfinite(spread), 1.0 / np.maximum(spread, 1e-300), 0.0)
-    a = (regressor * (moving * weight)[..., None]).reshape(-1, len(knobs))
-    b = (residual * moving * weight).reshape(-1)
-    scale = np.array([k.high - k.low for k in knobs])
-    delta = np.linalg.lstsq(a * scale, b, rcond=None)[0] * scale
+    delta = balance.least_squares(base, knobs, balance.moving & (np.abs(balance.qdd) < STEADY * balance.rated))
     out = params.copy()
     for knob, d in zip(knobs, delta, strict=True):
         out[knob.name].value[:] = np.clip(base[knob.name].value + d, knob.low, knob.high)
