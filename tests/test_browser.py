@@ -179,9 +179,11 @@ def four_runs(recording, tmp_path_factory):
     return runs
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="class")
 def four_runs_page(browser, four_runs):
-    """The four runs served, and one page that shows them all (the first solid, the rest translucent)."""
+    """The four runs served, and one page that shows them all (the first solid, the rest translucent),
+    open for the tests of one class only: a live page left open renders on, in software, and
+    slows every page the module opens after it."""
     first, *others = four_runs
     with ReplayServer(first.recording, port=0, name=first.name, others=others) as server:
         page = browser.new_page()
@@ -202,69 +204,72 @@ RUNS_SHOWN = """() => Object.entries(window.__viserSceneTree?.getState() ?? {})
     .map(([name, node]) => [name, node.visibility !== false])"""
 
 
-def test_four_controllers_share_one_world_and_the_chooser_hides_one(four_runs_page, four_runs):
-    server, page = four_runs_page
-    boxes = page.get_by_role("checkbox")
-    expect(boxes).to_have_count(4, timeout=WAIT_MS)
-    for k, run in enumerate(four_runs):
-        expect(boxes.nth(k)).to_be_checked(timeout=WAIT_MS)
-        expect(page.get_by_text(run.label)).to_be_visible(timeout=WAIT_MS)
-    assert sorted(page.evaluate(RUNS_SHOWN)) == [[f"/runs/{k}", True] for k in range(4)]
-    server.player.seek(10.0)
-    # Each machine stands where its own run stood at 10 s.
-    until(lambda: all(stands_at(m, run.recording, 10.0) for m, run in zip(server.view.machines, four_runs)),
-          "each machine at its run's 10 s")
-    assert not np.allclose(four_runs[1].recording.at(10.0).q_actual, four_runs[0].recording.at(10.0).q_actual)
-    geoms = server.view.geoms
-    four = screenshot_showing_machine(page, geoms, "replay_four_runs.png", TINTED)
-    assert machine_pixels(four, geoms, TINTED) > MACHINE_SHARE  # the solid machine, seen through the others
-    readout_row = page.locator("td", has_text="pid_paper")  # its row in the readout's table
-    expect(readout_row).to_have_count(1, timeout=WAIT_MS)
-
-    click(boxes.nth(2))  # pid_paper
-    until(lambda: server.player.shown == [True, True, False, True], "the player hiding run 3")
-    page.wait_for_function(f"() => JSON.stringify(({RUNS_SHOWN})().sort()) === "
-                           f"JSON.stringify([['/runs/0', true], ['/runs/1', true], ['/runs/2', false], ['/runs/3', true]])",
-                           timeout=WAIT_MS, polling=100)
-    # Its translucent machine lay over the others: without it, the machine's pixels change.
-    deadline = time.monotonic() + WAIT_MS / 1000
-    while changed_pixels(four, three := page.screenshot(timeout=WAIT_MS)) < MACHINE_SHARE:
-        assert time.monotonic() < deadline, "hiding a run changed nothing on the canvas"
-    (ARTIFACTS / "replay_three_runs.png").write_bytes(three)
-    chart = server.player.panel.chart_handles[0]  # position error, travel: a line per run shown
-    assert [series["label"].split(" [")[0] for series in chart.series[1:]] == [
-        "paper_individual_gains", "paper_shared_gain", "computed_torque_paper"]
-    expect(readout_row).to_have_count(0, timeout=WAIT_MS)  # gone from the readout
-    click(boxes.nth(2))
-    until(lambda: all(server.player.shown), "the player showing run 3 again")
-
-
 CURSOR = "document.querySelector('.bwr-time-cursor')"
 
 
-def test_the_charts_cursor_follows_the_timeline_and_a_click_seeks_it(four_runs_page):
-    server, page = four_runs_page
-    lefts = []
-    for t in (5.0, 15.0):
-        server.player.seek(t)
-        # The cursor takes the time first and its place once the chart is laid out: wait for both,
-        # however long a busy machine takes to lay it out, within a pixel of the chart's own x.
-        page.wait_for_function(f"""() => {{
-            const cursor = {CURSOR}, chart = Object.values(window.__viserTestpoints.uplots)[0]?.chart;
-            if (!cursor || !chart || cursor.dataset.time !== '{t:g}') return false;
-            const left = parseFloat(cursor.style.left), x = chart.valToPos({t}, 'x');
-            return Number.isFinite(left) && Number.isFinite(x) && Math.abs(left - x) <= 1.0;
-        }}""", timeout=WAIT_MS, polling=100)
-        lefts.append(page.evaluate(f"() => parseFloat({CURSOR}.style.left)"))
-    assert lefts[1] > lefts[0] + 20
-    # A click at 12 s on the first chart seeks there.
-    chart = page.locator(".uplot-container .u-over").first
-    chart.scroll_into_view_if_needed(timeout=WAIT_MS)
-    x = page.evaluate("() => Object.values(window.__viserTestpoints.uplots)[0].chart.valToPos(12, 'x')")
-    box = chart.bounding_box(timeout=WAIT_MS)
-    page.mouse.click(box["x"] + x, box["y"] + box["height"] / 2)
-    until(lambda: abs(server.player.time - 12.0) < 0.3, "the click's seek to 12 s")
-    page.wait_for_function(f"() => Math.abs(Number({CURSOR}?.dataset.time) - 12) < 0.3", timeout=WAIT_MS)
+class TestFourRunsServedOnOnePage:
+    """The four runs on one live page, which closes after them."""
+
+    def test_four_controllers_share_one_world_and_the_chooser_hides_one(self, four_runs_page, four_runs):
+        server, page = four_runs_page
+        boxes = page.get_by_role("checkbox")
+        expect(boxes).to_have_count(4, timeout=WAIT_MS)
+        for k, run in enumerate(four_runs):
+            expect(boxes.nth(k)).to_be_checked(timeout=WAIT_MS)
+            expect(page.get_by_text(run.label)).to_be_visible(timeout=WAIT_MS)
+        assert sorted(page.evaluate(RUNS_SHOWN)) == [[f"/runs/{k}", True] for k in range(4)]
+        server.player.seek(10.0)
+        # Each machine stands where its own run stood at 10 s.
+        until(lambda: all(stands_at(m, run.recording, 10.0) for m, run in zip(server.view.machines, four_runs)),
+              "each machine at its run's 10 s")
+        assert not np.allclose(four_runs[1].recording.at(10.0).q_actual, four_runs[0].recording.at(10.0).q_actual)
+        geoms = server.view.geoms
+        four = screenshot_showing_machine(page, geoms, "replay_four_runs.png", TINTED)
+        assert machine_pixels(four, geoms, TINTED) > MACHINE_SHARE  # the solid machine, seen through the others
+        readout_row = page.locator("td", has_text="pid_paper")  # its row in the readout's table
+        expect(readout_row).to_have_count(1, timeout=WAIT_MS)
+
+        click(boxes.nth(2))  # pid_paper
+        until(lambda: server.player.shown == [True, True, False, True], "the player hiding run 3")
+        shown = "[['/runs/0', true], ['/runs/1', true], ['/runs/2', false], ['/runs/3', true]]"
+        page.wait_for_function(f"() => JSON.stringify(({RUNS_SHOWN})().sort()) === JSON.stringify({shown})",
+                               timeout=WAIT_MS, polling=100)
+        # Its translucent machine lay over the others: without it, the machine's pixels change.
+        deadline = time.monotonic() + WAIT_MS / 1000
+        while changed_pixels(four, three := page.screenshot(timeout=WAIT_MS)) < MACHINE_SHARE:
+            assert time.monotonic() < deadline, "hiding a run changed nothing on the canvas"
+        (ARTIFACTS / "replay_three_runs.png").write_bytes(three)
+        chart = server.player.panel.chart_handles[0]  # position error, travel: a line per run shown
+        assert [series["label"].split(" [")[0] for series in chart.series[1:]] == [
+            "paper_individual_gains", "paper_shared_gain", "computed_torque_paper"]
+        expect(readout_row).to_have_count(0, timeout=WAIT_MS)  # gone from the readout
+        click(boxes.nth(2))
+        until(lambda: all(server.player.shown), "the player showing run 3 again")
+
+
+    def test_the_charts_cursor_follows_the_timeline_and_a_click_seeks_it(self, four_runs_page):
+        server, page = four_runs_page
+        lefts = []
+        for t in (5.0, 15.0):
+            server.player.seek(t)
+            # The cursor takes the time first and its place once the chart is laid out: wait for both,
+            # however long a busy machine takes to lay it out, within a pixel of the chart's own x.
+            page.wait_for_function(f"""() => {{
+                const cursor = {CURSOR}, chart = Object.values(window.__viserTestpoints.uplots)[0]?.chart;
+                if (!cursor || !chart || cursor.dataset.time !== '{t:g}') return false;
+                const left = parseFloat(cursor.style.left), x = chart.valToPos({t}, 'x');
+                return Number.isFinite(left) && Number.isFinite(x) && Math.abs(left - x) <= 1.0;
+            }}""", timeout=WAIT_MS, polling=100)
+            lefts.append(page.evaluate(f"() => parseFloat({CURSOR}.style.left)"))
+        assert lefts[1] > lefts[0] + 20
+        # A click at 12 s on the first chart seeks there.
+        chart = page.locator(".uplot-container .u-over").first
+        chart.scroll_into_view_if_needed(timeout=WAIT_MS)
+        x = page.evaluate("() => Object.values(window.__viserTestpoints.uplots)[0].chart.valToPos(12, 'x')")
+        box = chart.bounding_box(timeout=WAIT_MS)
+        page.mouse.click(box["x"] + x, box["y"] + box["height"] / 2)
+        until(lambda: abs(server.player.time - 12.0) < 0.3, "the click's seek to 12 s")
+        page.wait_for_function(f"() => Math.abs(Number({CURSOR}?.dataset.time) - 12) < 0.3", timeout=WAIT_MS)
 
 
 def stands_at(machine, run, t: float) -> bool:
