@@ -5,8 +5,9 @@
 The per-period hot spots are compiled with numba on first use (some 10 s on this 2-core
 machine) and cached on disk. `make setup` runs this: a second of each kind of shipped scene (the
 fuzzy controller on the paper's path, a PID digging a pile, two machines under an interlock that
-quick-stops them, a bench reclaim under its rate loop, a stacker laying a pile) calls every
-kernel once, and every later run, the replay's included, starts compiled.
+quick-stops them, a bench reclaim under its rate loop, a stacker laying a pile) and a lockstep
+of two runs (whose rows are views of the batch's arrays, another signature) call every kernel
+once, and every later run, the replay's and a batch's included, starts compiled.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import time
 
 from bwr_twin.config.scene import load_scene
 from bwr_twin.shipped import find_scene
-from bwr_twin.sim.lockstep import simulate
+from bwr_twin.sim.lockstep import simulate, simulate_lockstep
 
 
 def _first_second(name: str) -> dict:
@@ -37,6 +38,9 @@ def main() -> None:
                             ("heavy_chevron_stack", {"stacking.tonnes": 200.0, "stacking.layers": 1,
                                                      "stacking.axis_x": [-10.0, 10.0]})):
         simulate(load_scene(find_scene(name), overrides))
+    paper = _first_second("paper_individual_gains")
+    simulate_lockstep([load_scene(find_scene("paper_individual_gains"), {**paper, "simulation.seed": seed})
+                       for seed in (1, 2)])
     print(f"compiled the loop's kernels in {time.perf_counter() - started:.1f} s (cached for every later run)")
 
 
