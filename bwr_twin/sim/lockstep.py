@@ -180,13 +180,10 @@ class Lockstep:
         self._block = Block(self.runs, BLOCK if observe else 1, own_reference=self.tracking.own_rows,
                             reclaim=parts.reclaim is not None, neighbour=parts.neighbour is not None)
         self._block.q[0], self._block.qd[0] = plant.qpos, plant.qvel  # the first period's start
-        self._observer = None
-        if observe:
-            self._observer = Observer(
-                self.runs, self.samples, period, round(sim.record_period / period), self.machine,
-                path=None if self.tracking.own_rows else self.tracking.rows,
-                wind_mean=parts.parameters.wind_speed, reclaim=parts.reclaim is not None,
-                neighbour=parts.neighbour is not None)
+        self._observer = Observer(
+            self.runs, self.samples, period, round(sim.record_period / period), self.machine,
+            path=None if self.tracking.own_rows else self.tracking.rows, wind_mean=parts.parameters.wind_speed,
+            reclaim=parts.reclaim is not None, neighbour=parts.neighbour is not None) if observe else None
         self._controller: Controller | None = None  # whose declared signals are recorded
         self.command_source = "the drive forces given"  # who computes them, for messages
         self._stopped: set[int] = set()  # runs stopped for non-finite drive forces
