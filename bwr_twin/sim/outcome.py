@@ -27,15 +27,13 @@ class PlanOutcome:
         self.plan, self.target, self.period = plan, target, period  # target t/h
         # The belt carries a cut a bucket interval later, and holds it one more.
         self._settle = int(np.ceil(2 * bucket_interval / period))
-        # The counts and measures each period adds to, two arrays for one compiled call a period;
-        # the attributes are views of their rows.
+        # The counts and measures each period adds to, two arrays for one compiled call a period.
+        # Counts: periods in steady cutting in a row; periods counted steady, and of these within
+        # the band; the bench. Measures: t/h summed and squared over the steady periods; s of the
+        # first cut; m and s of the largest over-cut.
         self._counts = np.zeros((4, runs), dtype=np.int64)
         self._measures = np.zeros((5, runs))
         self._measures[2] = np.nan
-        # periods in steady cutting in a row; periods counted steady, and of these within the band; the bench
-        self._steady_for, self.steady_periods, self.steady_within, self._bench = self._counts
-        # t/h summed and squared over the steady periods; s of the first cut; m and s of the largest over-cut
-        self.steady_sum, self.steady_square_sum, self.contact_time, self.overcut_max, self.overcut_time = self._measures
         self.contact = np.full((runs, 3), np.nan)  # world m: the CP when the wheel first cut
         self.bench_carried = np.zeros((runs, plan.benches))  # m^3
 
@@ -49,27 +47,28 @@ class PlanOutcome:
 
     def discharged(self, volume: np.ndarray) -> None:
         """The buckets discharged `volume` (runs,) m^3 onto the belt in the current bench."""
-        _discharged(volume, self._bench, self.bench_carried)
+        _discharged(volume, self._counts[3], self.bench_carried)
 
     def metrics(self, run: int, density: float) -> dict:
         """The plan's share of metrics.json's `reclaim` object for `run`; `density` kg/m^3."""
         tonnes = density / KG_PER_T
-        periods = int(self.steady_periods[run])
-        mean = self.steady_sum[run] / periods if periods else 0.0
-        variance = max(self.steady_square_sum[run] / periods - mean**2, 0.0) if periods else 0.0
+        _, periods, within, _ = (int(count) for count in self._counts[:, run])
+        steady_sum, squares, contact_time, overcut_max, overcut_time = (float(m) for m in self._measures[:, run])
+        mean = steady_sum / periods if periods else 0.0
+        variance = max(squares / periods - mean**2, 0.0) if periods else 0.0
         predicted = self.plan.first_contact
         landing = (float(np.linalg.norm(self.contact[run] - predicted))
-                   if predicted is not None and not np.isnan(self.contact_time[run]) else None)
+                   if predicted is not None and not math.isnan(contact_time) else None)
         return {
             "target_rate_tph": float(self.target[run]),
             "steady_time_s": periods * self.period,
             "steady_rate_mean_tph": mean,
             "steady_rate_cv": float(np.sqrt(variance) / mean) if mean > 0 else None,
-            "steady_within_10pct": float(self.steady_within[run] / periods) if periods else None,
+            "steady_within_10pct": within / periods if periods else None,
             "landing_error_m": landing,
-            "first_contact_time_s": None if np.isnan(self.contact_time[run]) else float(self.contact_time[run]),
-            "overcut_max_m": float(self.overcut_max[run]),
-            "overcut_max_time_s": float(self.overcut_time[run]),
+            "first_contact_time_s": None if math.isnan(contact_time) else contact_time,
+            "overcut_max_m": overcut_max,
+            "overcut_max_time_s": overcut_time,
             "bench_t": [float(v * tonnes) for v in self.bench_carried[run]],
             "bench_planned_t": self.plan.bench_tonnes(),
         }
