@@ -4,13 +4,17 @@ first variant (tools/calibration_study.py, `--seed`) with each noise source on o
 balance of forces' own estimate of every axis's damping, friction and drive inertia.
 
     python tools/calibration_profile.py [--param luff_armature] [--torque-noise 0.01]
-        [--disturbance 1] [--still-air] [--window 5] [--seed 1]
+        [--disturbance 1] [--still-air] [--window 5] [--seed 1] [--factors 0.5 0.8 1 ...]
 
 Without torque noise, disturbance forces or wind, an output-error fit's residual is least at the
 truth. Noise in the logged force drives the replayed motion where the machine did not go, and a
 disturbance the test's position loop answers puts the answer in the logged force but not its
-cause: a heavier axis filters both, so either moves the least residual above the truth. The
-columns' units: m and rad (positions), m/s and rad/s (speeds).
+cause: a heavier axis filters both, so either moves the least residual of a drive inertia above
+the truth; the disturbances move the travel's damping's below it, through the position. The
+columns' units: m and rad (positions), m/s and rad/s (speeds). The last line of the profile is the
+fit's own objective (each column in units of its RMS at the truth, as the fit weighs them where it
+stands, squared and summed): the vertex of the parabola through its least and the factors either
+side.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ def main() -> None:
     parser.add_argument("--still-air", action="store_true", help="no wind (the study's: 10 m/s, gusting 2.5 m/s)")
     parser.add_argument("--window", type=float, default=5.0, help="s, the fit's window")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--factors", type=float, nargs="+", default=FACTORS, help="of the truth, rising")
     parser.add_argument("--out", type=Path, default=Path("out/calibration_profile"))
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
@@ -62,7 +67,8 @@ def main() -> None:
           f"{args.window:g} s windows")
     print("x truth  " + " ".join(f"{c:>14s}" for c in problem.columns))
     rows = []
-    for factor in FACTORS:
+    factors = sorted(args.factors)
+    for factor in factors:
         moved = x.copy()
         moved[index] *= factor
         rows.append(problem.column_rms(moved))
@@ -70,9 +76,23 @@ def main() -> None:
     rows = np.array(rows)
     # A column the parameter barely moves (by less than 0.1 %) has no least worth naming.
     moves = rows.max(axis=0) - rows.min(axis=0) > 1e-3 * rows.min(axis=0)
-    least = [f"{FACTORS[i]:14.2f}" if m else f"{'-':>14s}" for i, m in zip(rows.argmin(axis=0), moves, strict=True)]
+    least = [f"{factors[i]:14.2f}" if m else f"{'-':>14s}" for i, m in zip(rows.argmin(axis=0), moves, strict=True)]
     print("least at " + " ".join(least) + "  x truth")
+    # The fit's own objective near its end: every column's residual in units of its RMS at the
+    # truth (the fit scales each column by its RMS where it stands), squared and summed.
+    objective = ((rows / problem.column_rms(x)) ** 2).sum(axis=1)
+    print(f"the fit's objective least at {vertex(np.array(factors), objective):.3f} x truth")
     print_balance(problem, params, knobs, truth)
+
+
+def vertex(factors: np.ndarray, values: np.ndarray) -> float:
+    """Where the parabola through the least of `values` and its two neighbours is least (at an
+    end of `factors`, that end)."""
+    i = int(np.argmin(values))
+    if i in (0, len(values) - 1):
+        return float(factors[i])
+    a, b, _ = np.polyfit(factors[i - 1:i + 2], values[i - 1:i + 2], 2)
+    return float(-b / (2 * a))
 
 
 def print_balance(problem, params, knobs, truth) -> None:
