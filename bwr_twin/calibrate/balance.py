@@ -89,8 +89,7 @@ class Balance:
         two equations has none, and what only it sees stays where it is."""
         needed = self.needed(params)
         residual = self.force - needed  # what the knobs' changes must explain
-        spread = np.array([np.std(residual[rows[:, j], j]) if rows[:, j].sum() > 1 else np.inf for j in range(3)])
-        weight = rows * np.where(np.isfinite(spread), 1.0 / np.maximum(spread, 1e-300), 0.0)
+        weight = rows * _inverse(_spread(residual, rows))
         a = (self.columns(params, knobs, needed) * weight[..., None]).reshape(-1, len(knobs))
         scale = np.array([k.high - k.low for k in knobs])  # the columns of one size
         return np.linalg.lstsq(a * scale, (residual * weight).reshape(-1), rcond=None)[0] * scale
@@ -109,10 +108,8 @@ class Balance:
         measured = noise is None
         if measured:
             residual = self.force - needed
-            noise = np.array([np.std(residual[self.moving[:, j], j]) if self.moving[:, j].sum() > 1
-                              else np.inf for j in range(3)])
-        weight = np.where(np.isfinite(noise) & (noise > 0), 1.0 / np.maximum(noise, 1e-300), 0.0)
-        rows = self.moving * weight  # (n, 3): each axis's moving rows, in units of its noise
+            noise = _spread(residual, self.moving)
+        rows = self.moving * _inverse(noise)  # (n, 3): each axis's moving rows, in units of its noise
         regressor = self.columns(params, knobs, needed) * rows[..., None]  # (n, 3, p)
         flat = regressor.reshape(-1, len(knobs))
         information = flat.T @ flat
@@ -129,6 +126,17 @@ class Balance:
             variance = np.maximum(variance, np.diag(sandwich))
         error = np.sqrt(np.maximum(variance, 0.0))
         return {k.name: float("inf") if u else float(e) for k, e, u in zip(knobs, error, unseen, strict=True)}
+
+
+def _spread(residual: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(3,) each axis's standard deviation of `residual` (n, 3) over its `rows` (n, 3), or
+    infinite for an axis with fewer than two."""
+    return np.array([np.std(residual[rows[:, j], j]) if rows[:, j].sum() > 1 else np.inf for j in range(3)])
+
+
+def _inverse(spread: np.ndarray) -> np.ndarray:
+    """(3,) each axis's weight, the inverse of its spread: none for an axis without one."""
+    return np.where(np.isfinite(spread) & (spread > 0), 1.0 / np.maximum(spread, 1e-300), 0.0)
 
 
 def _intervals(log, wind) -> tuple[np.ndarray, ...]:
