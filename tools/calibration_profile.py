@@ -45,6 +45,8 @@ def main() -> None:
     parser.add_argument("--factors", type=float, nargs="+", default=FACTORS, help="of the truth, rising")
     parser.add_argument("--out", type=Path, default=Path("out/calibration_profile"))
     args = parser.parse_args()
+    if min(args.factors) <= 0:
+        parser.error(f"--factors: {min(args.factors):g}; each is a positive multiple of the truth")
     rng = np.random.default_rng(args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
     mjcf, truth, friction = variant(args.out, rng)
