@@ -6,7 +6,11 @@ the calibrated and the nominal model predict a held-out log (another path, anoth
 loop over 60 s windows. Prints the targets table.
 
     python tools/calibration_study.py [--variants 20] [--minutes 10] [--seed 1] [--out out/calibration_study]
+    python tools/calibration_study.py --only 8 20   # those variants' fits alone, each with its own draw
     python tools/calibration_study.py --report out/calibration_study/study.json   # its tables again
+
+Beside each variant's held-out ratio it prints the true parameters' own: what any fit could reach
+on that log, the disturbances and the noise being what no model predicts.
 """
 
 from __future__ import annotations
@@ -164,15 +168,21 @@ def main() -> None:
     parser.add_argument("--disturbance", type=float, default=1.0,
                         help="share of the random disturbance forces (scenes/heavy_shadow.toml's) in the logs (default 1)")
     parser.add_argument("--out", type=Path, default=Path("out/calibration_study"))
+    parser.add_argument("--only", type=int, nargs="+", metavar="N",
+                        help="fit these variants alone (1 on); every variant up to the last is still drawn and "
+                             "logged, so that each keeps the draw it has in the full study")
     parser.add_argument("--report", type=Path, metavar="STUDY_JSON",
                         help="print the tables of a finished study (its study.json) and stop")
     args = parser.parse_args()
     if args.report is not None:
         report(json.loads(args.report.read_text()))
         return
+    chosen = set(range(1, args.variants + 1) if args.only is None else args.only)
+    if not chosen <= set(range(1, args.variants + 1)):
+        parser.error(f"--only: variant {max(chosen)} of {args.variants}; the variants are numbered 1 to --variants")
     rng = np.random.default_rng(args.seed)
-    rows, ratios, seconds = [], [], []
-    for v in range(args.variants):
+    rows, ratios, truth_ratios, seconds, fitted = [], [], [], [], []
+    for v in range(max(chosen)):
         folder = args.out / f"variant_{v + 1:02d}"
         folder.mkdir(parents=True, exist_ok=True)
         mjcf, truth, friction = variant(folder, rng)
@@ -185,6 +195,9 @@ def main() -> None:
         other.write_text(imperfect(scene_for(machine, mjcf, other, times, points, ["# held out"]), args.disturbance).replace(
             "seed = 1", f"seed = {args.seed + 1000 + v}") + plant)
         log, held = log_of(test, rng), log_of(other, rng)
+        if v + 1 not in chosen:
+            continue
+        fitted.append(v + 1)
         nominal = Machine(HEAVY)
         knobs = catalogue(nominal, PARAMS)
         started = time.perf_counter()
@@ -193,6 +206,10 @@ def main() -> None:
         check = Problem(nominal, knobs, [held], window=60.0)
         before, after = check.column_rms(check.params.as_nominal_vector()), check.column_rms(result.x)
         ratios.append(before[:3] / np.maximum(after[:3], 1e-300))
+        exact = check.params.copy()
+        for name, value in truth.items():
+            exact[name].value[:] = value
+        truth_ratios.append(before[:3] / np.maximum(check.column_rms(exact.as_vector())[:3], 1e-300))
         for e in result.estimates:
             true = truth[e.knob.name]
             rows.append({"variant": v + 1, "name": e.knob.name, "kind": e.knob.kind, "truth": true,
@@ -200,11 +217,13 @@ def main() -> None:
                          "error": (e.fitted - true) / true,
                          "covered": bool(e.identifiable and e.interval[0] <= true <= e.interval[1])})
         print(f"variant {v + 1}: fit {seconds[-1]:.0f} s; held-out RMS ratio per axis "
-              f"{', '.join(f'{r:.1f}x' for r in ratios[-1])}; worst errors "
+              f"{', '.join(f'{r:.1f}x' for r in ratios[-1])} (the truth's {', '.join(f'{r:.1f}x' for r in truth_ratios[-1])}); "
+              "worst errors "
               + ", ".join(f"{r['name']} {100 * r['error']:+.0f} %" for r in rows[-len(knobs):]), flush=True)
-    study = {"rows": rows, "ratios": np.array(ratios).tolist(), "seconds": seconds,
-             "variants": args.variants, "minutes": args.minutes, "disturbance": args.disturbance}
-    (args.out / "study.json").write_text(json.dumps(study, indent=1))
+    study = {"rows": rows, "ratios": np.array(ratios).tolist(), "truth_ratios": np.array(truth_ratios).tolist(),
+             "fitted": fitted, "seconds": seconds, "variants": len(fitted), "minutes": args.minutes, "disturbance": args.disturbance}
+    name = "study.json" if args.only is None else f"study_{'_'.join(map(str, sorted(chosen)))}.json"  # a full study's stays
+    (args.out / name).write_text(json.dumps(study, indent=1))
     print()
     report(study)
 
@@ -228,6 +247,11 @@ def report(study: dict) -> None:
     worst = ratios.min(axis=0)
     print(f"{'held-out 60 s RMS, nominal / calibrated, worst per axis':58s} {'>= 5x':14s} "
           f"{', '.join(f'{r:.1f}x' for r in worst):22s} {'yes' if (worst >= 5).all() else 'no'}")
+    truth = np.array(study.get("truth_ratios", []))  # studies written before it was measured have none
+    if truth.size:
+        reach = "  the true parameters' own, worst per axis (the reach)"
+        print(f"{reach:58s} {'':14s} "
+              f"{', '.join(f'{r:.1f}x' for r in truth.min(axis=0))}")
     print(f"{'fit of a 10-minute log at 10 Hz, slowest':58s} {'<= 180 s':14s} {max(seconds):.0f} s {'':17s} "
           f"{'yes' if max(seconds) <= 180 else 'no'}")
     print()
@@ -242,6 +266,12 @@ def report(study: dict) -> None:
               + ", ".join(outside))
     print(f"{'held-out ratio per axis':26s} " + "; ".join(
         f"{axis} {ratios[:, a].min():.1f}x to {ratios[:, a].max():.1f}x" for a, axis in enumerate(AXES)))
+    numbers = study.get("fitted", range(1, len(ratios) + 1))
+    for a, axis in enumerate(AXES):
+        short = [f"{n} ({ratios[i, a]:.1f}x" + (f", the truth's {truth[i, a]:.1f}x)" if truth.size else ")")
+                 for i, n in enumerate(numbers) if ratios[i, a] < 5]
+        if short:
+            print(f"  {axis} below 5x on variant " + ", ".join(short))
 
 if __name__ == "__main__":
     main()
