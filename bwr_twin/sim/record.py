@@ -81,7 +81,8 @@ class RunResult:
 
 
 class Recorder:
-    """The signals of every run of a lockstep at the record period: (rows, runs, 3) arrays.
+    """The signals of every run of a lockstep at the record period: (runs, rows, ...) arrays,
+    each run's rows its own, so that a run's share is a view of them, never a copy.
 
     Samples are control periods 0..n-1; every `every`-th one is kept, and always the last.
     """
@@ -92,11 +93,11 @@ class Recorder:
         self._keep(samples)
         rows = len(self.samples)
         self.controller_schema = tuple(controller_signals)
-        self.signals = {s.name: np.zeros((rows, runs, s.width)) for s in LOOP + self.controller_schema}
-        self.wind_speed = np.zeros((rows, runs))
-        self.reclaim = {name: np.zeros((rows, runs) + ((width,) if width > 1 else ()))
+        self.signals = {s.name: np.zeros((runs, rows, s.width)) for s in LOOP + self.controller_schema}
+        self.wind_speed = np.zeros((runs, rows))
+        self.reclaim = {name: np.zeros((runs, rows) + ((width,) if width > 1 else ()))
                         for name, _, width in RECLAIM} if reclaim else None
-        self.neighbour = {s.name: np.zeros((rows, runs, 3)) for s in NEIGHBOUR} if neighbour else None
+        self.neighbour = {s.name: np.zeros((runs, rows, 3)) for s in NEIGHBOUR} if neighbour else None
 
     def _keep(self, samples: int) -> None:
         """Which of `samples` control periods are kept: every `every`-th one, and the last."""
@@ -107,6 +108,12 @@ class Recorder:
         self.row_of = np.full(samples, -1)  # the row that keeps each sample, or -1
         self.row_of[kept] = np.arange(len(kept))
 
+    @staticmethod
+    def put(table: np.ndarray, at: slice | np.ndarray, values: np.ndarray) -> None:
+        """Write `values` (len(at), runs, ...), a block's rows as the loop holds them, into the
+        rows `at` of `table` (runs, rows, ...)."""
+        table[:, at] = np.swapaxes(values, 0, 1)
+
     def extend_to(self, samples: int) -> None:
         """The runs go on for `samples` control periods in all, more than the record was sized
         for; the rows kept so far stay (the old last sample, off the grid, is not yet recorded)."""
@@ -115,8 +122,8 @@ class Recorder:
         rows = len(self.samples)
 
         def grown(values: np.ndarray) -> np.ndarray:
-            array = np.zeros((rows,) + values.shape[1:])
-            array[:on_grid] = values[:on_grid]
+            array = np.zeros((values.shape[0], rows) + values.shape[2:])
+            array[:, :on_grid] = values[:, :on_grid]
             return array
 
         self.signals = {name: grown(values) for name, values in self.signals.items()}
@@ -139,17 +146,17 @@ class Recorder:
 
     def run_result(self, run: int, *, scene: Any, machine: Machine, trajectory: Trajectory,
                    time: np.ndarray, metrics: dict) -> RunResult:
-        """Run `run`'s share, as contiguous arrays of its own."""
+        """Run `run`'s share: views of its own rows."""
         rows = self.rows
-        share = {name: np.ascontiguousarray(values[:rows, run]) for name, values in self.signals.items()}
+        share = {name: values[run, :rows] for name, values in self.signals.items()}
         controller = {s.name: share.pop(s.name) for s in self.controller_schema}
         neighbour = (None if self.neighbour is None
-                     else {name: np.ascontiguousarray(values[:rows, run]) for name, values in self.neighbour.items()})
+                     else {name: values[run, :rows] for name, values in self.neighbour.items()})
         return RunResult(scene=scene, machine=machine, trajectory=trajectory, metrics=metrics,
-                         time=time[self.samples], wind_speed=self.wind_speed[:rows, run].copy(),
+                         time=time[self.samples], wind_speed=self.wind_speed[run, :rows],
                          controller_signals=controller, signal_schema=self.controller_schema, neighbour=neighbour,
                          **share)
 
     def reclaim_share(self, run: int) -> dict[str, np.ndarray]:
         """Run `run`'s reclaim signals (ReclaimRecord's names), over the rows kept."""
-        return {name: values[: self.rows, run].copy() for name, values in self.reclaim.items()}
+        return {name: values[run, : self.rows] for name, values in self.reclaim.items()}
