@@ -9,7 +9,9 @@ would rest on an end stop, whose constraint makes every step dearer than the clo
 Each figure alternates the measured code with its floor `--repeat` times, keeps the best of
 each (the machine is shared and noisy), and prints the spread of the ratios beside it:
 
-    floor ratio:        a lockstep of `--runs` paper runs (700 s) against its floor  (target <= 1.15)
+    floor ratio:        a lockstep of `--runs` paper runs (700 s) against its floor  (target <= 1.15),
+                        then its split: MuJoCo's steps along the path (the machine moving, which
+                        costs more than at rest), and the rest, the twin's own
     single-run ratio:   one paper run alone against one run's floor                   (target <= 3)
     bench-reclaim ratio: heavy_bench_reclaim alone against its floor                  (target <= 8)
     cli ratio:          `python -m bwr_twin.run SCENE --no-plots`, start to exit, warm, against one
@@ -82,16 +84,52 @@ def timed(work) -> float:
     return time.perf_counter() - started
 
 
+class StepClock:
+    """Within it, the wall time spent in MuJoCo's `Batch.step`, whoever calls it (s)."""
+
+    def __init__(self):
+        self.seconds = 0.0
+
+    def __enter__(self) -> StepClock:
+        original, clock = Batch.step, self
+        self._original = original
+
+        def step(batch, *args, **kwargs):
+            started = time.perf_counter()
+            try:
+                return original(batch, *args, **kwargs)
+            finally:
+                clock.seconds += time.perf_counter() - started
+
+        Batch.step = step
+        return self
+
+    def __exit__(self, *exc) -> None:
+        Batch.step = self._original
+
+
 def lockstep_figure(base, args) -> None:
     scenes = [load_scene(base.path, {"simulation.seed": seed}) for seed in range(1, args.runs + 1)]
     periods, q0 = path_periods(base)
     threads = args.threads or os.cpu_count()
     print(f"{args.runs} paper runs of {(periods - 1) * base.simulation.control_period:g} s in one lockstep "
           f"on {threads} threads:")
-    best, _ = compare("floor", lambda: timed(lambda: simulate_lockstep(scenes, nthread=args.threads)),
-                      lambda: floor(base, args.runs, args.threads, periods, q0), args.repeat)
+    stepping = {}  # each measured run's wall time: its time in Batch.step
+
+    def measured() -> float:
+        with StepClock() as clock:
+            elapsed = timed(lambda: simulate_lockstep(scenes, nthread=args.threads))
+        stepping[elapsed] = clock.seconds
+        return elapsed
+
+    best, best_floor = compare("floor", measured, lambda: floor(base, args.runs, args.threads, periods, q0),
+                               args.repeat)
     steps = periods * round(base.simulation.control_period / base.simulation.timestep)
     print(f"  {best / args.runs:.3f} s a run, {1e6 * best / (args.runs * steps):.2f} us a physics step")
+    mujoco_own = stepping[best]
+    print(f"  of the best: MuJoCo's steps along the path {mujoco_own:.1f} s ({mujoco_own / best_floor:.3f} x the "
+          f"floor, which holds the machine at rest); the twin's own {best - mujoco_own:.1f} s "
+          f"({(best - mujoco_own) / best_floor:.1%} of the floor)")
 
 
 def single_figure(base, args) -> None:
