@@ -68,7 +68,7 @@ class Observer:
         if not picked.size:
             return
         at = rows[picked]
-        if at[-1] - at[0] + 1 == len(at):  # the kept rows are numbered in order: a slice writes faster than an index
+        if at[-1] - at[0] + 1 == len(at):  # kept rows are numbered in order: a slice writes faster
             at = slice(int(at[0]), int(at[-1]) + 1)
         put, signals = recorder.put, recorder.signals
         q_desired, qd_desired, qdd_desired = (np.broadcast_to(r[picked], (len(picked), self.runs, 3))
