@@ -51,8 +51,8 @@ class HeldNoise:
 
     def _draw_block(self, start: int) -> None:
         periods = np.arange(start, start + BLOCK)
-        # The draw each period holds, per run: one per hold time (1e-9 absorbs k * period / hold rounding).
-        held = np.floor((periods * self._period)[:, None] / self._hold + 1e-9).astype(np.int64)  # (BLOCK, runs)
+        # The draw each period holds, per period and run: one per hold time (1e-9 absorbs rounding).
+        held = np.floor((periods * self._period)[:, None] / self._hold + 1e-9).astype(np.int64)
         block = np.empty((BLOCK,) + self._amplitude.shape)
         for run, generator in enumerate(self._generators):
             index = held[:, run]
