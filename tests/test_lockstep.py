@@ -60,6 +60,18 @@ def test_a_run_gives_the_same_metrics_alone_and_in_a_lockstep_of_256(short_scene
             assert (tmp_path / f"alone_{i}" / name).read_bytes() == (tmp_path / f"together_{i}" / name).read_bytes()
 
 
+def test_each_runs_signals_are_its_own_contiguous_rows(short_scene):
+    results = simulate_lockstep([varied(short_scene, i) for i in range(3)])
+    first, second = results[0], results[1]
+    for name in ("q", "qd_measured", "drive_force", "disturbance", "wind_speed"):
+        assert getattr(first, name).flags.c_contiguous, name
+        assert len(getattr(first, name)) == len(first.time), name
+    before = second.q.copy()
+    first.q[...] = np.nan  # an engineer's edit of one run's result
+    np.testing.assert_array_equal(second.q, before)
+    assert not np.array_equal(before, results[2].q)  # the runs differ: each row is its own run's
+
+
 def test_a_diverging_run_fails_alone_and_the_others_go_on(short_scene):
     good = load_scene(short_scene)
     bad = load_scene(short_scene, {"controller.output_gain": [1e12, 1e12, 1e12]})
