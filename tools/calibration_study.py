@@ -182,8 +182,11 @@ def main() -> None:
         report(json.loads(args.report.read_text()))
         return
     chosen = set(range(1, args.variants + 1) if args.only is None else args.only)
-    if not chosen <= set(range(1, args.variants + 1)):
-        parser.error(f"--only: variant {max(chosen)} of {args.variants}; the variants are numbered 1 to --variants")
+    outside = sorted(chosen - set(range(1, args.variants + 1)))
+    if outside:
+        parser.error(f"--only: variant {outside[0]}; the variants are numbered 1 to --variants ({args.variants})")
+    if not 0 <= args.torque_noise < 1:
+        parser.error(f"--torque-noise: {args.torque_noise:g}; a share of the drive rating, 0 to below 1")
     rng = np.random.default_rng(args.seed)
     rows, ratios, truth_ratios, seconds, fitted = [], [], [], [], []
     for v in range(max(chosen)):
