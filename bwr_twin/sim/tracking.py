@@ -144,22 +144,33 @@ class BenchTracking:
         `instruments`, if given, are what the rate control reads instead of the true rate and
         power. Raises BwrError for a plan that cannot be carried out (bwr_twin.planning.bench)."""
         scene = scenes[0]
-        self._scene, self._machine, self._known_pile = scene, machine, known_pile
         self._reclaim = reclaim
         survey = survey_plan(scene)
         # The control period at which the survey ends and the benches begin; None without a survey.
         self.survey_end = None if survey is None else round(survey.nominal_duration / period)
-        self.surveying = known_pile is not None and survey is not None  # the benches are still to plan
-        self.plan = survey if self.surveying else plan_scene(scene)
+        # What plans the benches on the pile the runs know as the survey ends; None once planned,
+        # or where they were planned in advance on the true pile.
+        self._benches = (None if known_pile is None or survey is None
+                         else lambda: plan_after_survey(scene, machine, known_pile()))
+        self.plan = plan_scene(scene) if self._benches is None else survey
         self._reference = reference = BenchReference(self.plan, len(scenes), period, machine.fk)
         if scene.interlock is not None:  # slowed, the plan may take as long again over the slow share
             reference.samples = math.ceil(reference.samples / scene.interlock.slow_share)
             reference.time = np.arange(reference.samples) * period
-        self.samples, self.time, self.start = reference.samples, reference.time, reference.start
+        self.samples = reference.samples
         self._period = period
         self._stop = scene.reclaim.stop
         self._trim = SlewTrim(scenes, period, instruments)
-        self.outcome = PlanOutcome(self.plan, self._trim.targets, machine.wheel.bucket_interval, period)
+        self._bucket_interval = machine.wheel.bucket_interval
+        self.outcome = PlanOutcome(self.plan, self._trim.targets, self._bucket_interval, period)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self._reference.time
+
+    @property
+    def start(self) -> np.ndarray:
+        return self._reference.start
 
     @property
     def instruments(self) -> RateInstruments | None:
@@ -180,7 +191,7 @@ class BenchTracking:
         rest, measured and recorded). As a survey on the scanned pile ends, the benches are
         planned and `samples` grows to the most they may take."""
         reference, reclaim = self._reference, self._reclaim
-        if not self.surveying:
+        if self._benches is None:
             self.outcome.add(k - 1, phase, reclaim)
         trim = self._trim.trims((k - 1) * self._period, reclaim, phase, self.external_trim)
         stop, stopping = self._stop, None
@@ -191,18 +202,18 @@ class BenchTracking:
         reference.advance(trim, stopping, self.pace)
         if not reference.finished.all():
             return
-        if self.surveying:
+        if self._benches is not None:
             self._plan_benches()
             return
         self.samples = min(self.samples, k + 1)
 
     def _plan_benches(self) -> None:
         """The survey has ended: the benches planned on the pile the runs know, followed from here."""
-        self.surveying = False
-        self.plan = plan_after_survey(self._scene, self._machine, self._known_pile())
+        self.plan = self._benches()
+        self._benches = None
         self._reference.continue_with(self.plan)
-        self.samples, self.time = self._reference.samples, self._reference.time
-        self.outcome = PlanOutcome(self.plan, self._trim.targets, self._machine.wheel.bucket_interval, self._period)
+        self.samples = self._reference.samples
+        self.outcome = PlanOutcome(self.plan, self._trim.targets, self._bucket_interval, self._period)
 
     def waypoints(self, run: int) -> tuple[Trajectory, list[str]]:
         return self._reference.waypoints(run)
