@@ -68,7 +68,6 @@ class Problem:
     def __post_init__(self) -> None:
         self.velocity = self.velocity and all(log.qd is not None for log in self.logs)
         names = [self.machine.model.joint(j).name for j in self.machine.joint_ids]
-        self.joints = names
         self.spec = edited_spec(self.machine.path, Edits(physics_only=True, timestep=self.timestep,
                                                          joint_sensors=names, still_air=True,
                                                          velocity_sensors=names if self.velocity else ()))
