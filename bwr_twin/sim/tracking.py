@@ -200,7 +200,7 @@ class BenchTracking:
         elif stop.tonnes is not None:
             stopping = reclaim.carried_tonnes() >= stop.tonnes
         reference.advance(trim, stopping, self.pace)
-        if not reference.finished.all():
+        if not all(reference.finished.tolist()):  # per period: a list, not an array reduction (µs)
             return
         if self._benches is not None:
             self._plan_benches()
